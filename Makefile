@@ -1,0 +1,64 @@
+# Scratch Iridescence: one-command setup, tests, demo and benchmarks.
+#
+# Every target that runs Python depends on `setup`, which creates .venv once
+# (pinned versions from pyproject.toml) and installs Debian's libllvm19 when no
+# libLLVM >= 16 is present: Dr.Jit 1.5's CPU backend crashes with LLVM 15.
+# A second run finds the stamp file and installs nothing.
+
+SHELL := /bin/bash
+.SHELLFLAGS := -eu -o pipefail -c
+PYTHON ?= $(shell command -v python3.11 || command -v python3)
+VENV := .venv
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.installed
+PYTEST := $(PY) -m pytest
+
+.PHONY: setup llvm test test-slow demo bench clean help
+
+help:
+	@echo "make demo       render the bundled demo scene to out/"
+	@echo "make test       run the test suite (without the slow checks)"
+	@echo "make test-slow  run the slow checks only"
+	@echo "make bench      run the benchmarks in tests/bench"
+
+setup: $(STAMP) llvm
+
+$(STAMP): pyproject.toml
+	@version=$$($(PYTHON) -c 'import sys; print("%d.%d" % sys.version_info[:2])'); \
+	if [ "$$version" != "3.11" ]; then \
+	    echo "error: Python 3.11 is required (bpy 5.0 wheels are CPython 3.11 only); found $$version at $(PYTHON)" >&2; \
+	    echo "       run 'make PYTHON=/path/to/python3.11 ...'" >&2; exit 1; fi
+	@if [ ! -x $(PY) ]; then \
+	    echo "creating $(VENV) with $(PYTHON)"; \
+	    $(PYTHON) -m venv $(VENV) || { rm -rf $(VENV); echo "error: 'python3 -m venv' failed; on Debian: apt-get install python3.11-venv" >&2; exit 1; }; \
+	fi
+	$(PY) -m pip install --quiet --disable-pip-version-check --upgrade pip
+	$(PY) -m pip install --quiet --disable-pip-version-check -e '.[dev]'
+	@touch $(STAMP)
+
+# Dr.Jit finds the newest libLLVM on the loader path by itself.
+llvm:
+	@if command -v ldconfig >/dev/null && ! ldconfig -p 2>/dev/null | grep -qE 'libLLVM(-|\.so\.)(1[6-9]|[2-9][0-9])'; then \
+	    echo "no libLLVM >= 16 found: installing Debian's libllvm19 (Dr.Jit 1.5 crashes with LLVM 15)"; \
+	    sudo=""; [ "$$(id -u)" -eq 0 ] || sudo="sudo"; \
+	    $$sudo apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$sudo apt-get install -y -qq libllvm19; \
+	fi
+
+# pytest exits with 5 when it collected nothing; make treats any non-zero status as failure.
+test: setup
+	$(PYTEST) -m "not slow"
+
+test-slow: setup
+	$(PYTEST) -m slow
+
+# Until the render path exists: the smallest end-to-end job, a Fig. 7(b) scratch file.
+demo: setup
+	@mkdir -p out
+	$(PY) -m mitsuba_bridge generate out/demo_scratches.npz --count 3000
+	$(PY) -m mitsuba_bridge info out/demo_scratches.npz
+
+bench: setup
+	@for b in tests/bench/bench_*.py; do echo "== $$b"; $(PY) $$b; done
+
+clean:
+	rm -rf out dist .pytest_cache

@@ -1,0 +1,83 @@
+"""Command line: ``python -m mitsuba_bridge <command> ...``.
+
+Commands
+--------
+info FILE...      summary of scratch files (validates them)
+generate OUT      write a random scratch file for a flat UV square
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+
+from . import scratch
+
+
+def _info(args) -> int:
+    status = 0
+    for path in args.files:
+        try:
+            scratches = scratch.load(path)
+        except (scratch.ScratchFormatError, OSError) as error:
+            print(f"error: {error}", file=sys.stderr)
+            status = 1
+            continue
+        print(f"{path}: {scratches!r}")
+        if scratches.count:
+            lengths = scratch.scratch_lengths(scratches.uv, scratches.offsets)
+            print(f"  width  {scratches.width.min() * 1e6:.4g} .. {scratches.width.max() * 1e6:.4g} um")
+            print(f"  depth  {scratches.depth.min() * 1e9:.4g} .. {scratches.depth.max() * 1e9:.4g} nm")
+            print(f"  length {lengths.min():.4g} .. {lengths.max():.4g} (UV units)")
+            profiles = {p.name.lower(): int((scratches.profile == p).sum()) for p in scratch.Profile}
+            print("  profiles " + ", ".join(f"{name} {n}" for name, n in profiles.items()))
+    return status
+
+
+def _generate(args) -> int:
+    try:
+        width = scratch.parse_distribution(args.width, "um")
+        depth = scratch.parse_distribution(args.depth, "nm")
+    except ValueError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    scratches = scratch.random_scratches(
+        args.count, seed=args.seed, width=width, depth=depth, length=(args.length_min, args.length_max),
+        vertices=args.vertices, curvature=args.curvature,
+        profile=scratch.Profile[args.profile.upper()],
+        depth_variation=tuple(args.depth_variation), width_variation=tuple(args.width_variation))
+    scratch.save(scratches, args.output, compress=args.compress)
+    print(f"wrote {args.output}: {scratches!r}")
+    return 0
+
+
+def main(argv=None) -> int:
+    """Entry point of ``python -m mitsuba_bridge``."""
+    parser = argparse.ArgumentParser(prog="python -m mitsuba_bridge", description=__doc__.split("\n")[0])
+    commands = parser.add_subparsers(dest="command", required=True)
+
+    info = commands.add_parser("info", help="summarise and validate scratch files")
+    info.add_argument("files", nargs="+")
+    info.set_defaults(run=_info)
+
+    gen = commands.add_parser("generate", help="write a random scratch file for a flat UV square")
+    gen.add_argument("output")
+    gen.add_argument("--count", type=int, default=3000)
+    gen.add_argument("--seed", type=int, default=0)
+    gen.add_argument("--width", default="G[4, 1.3]", help="micrometres: U[a, b], G[mean, std] or a value")
+    gen.add_argument("--depth", default="G[250, 80]", help="nanometres: U[a, b], G[mean, std] or a value")
+    gen.add_argument("--length-min", type=float, default=0.2, help="UV units")
+    gen.add_argument("--length-max", type=float, default=0.6, help="UV units")
+    gen.add_argument("--vertices", type=int, default=8)
+    gen.add_argument("--curvature", type=float, default=0.0, help="largest curvature, 1/UV units")
+    gen.add_argument("--profile", choices=["rectangular", "triangular"], default="rectangular")
+    gen.add_argument("--depth-variation", type=float, nargs=2, default=(1.1, 0.04), metavar=("AMP", "FREQ"))
+    gen.add_argument("--width-variation", type=float, nargs=2, default=(0.0, 0.0), metavar=("AMP", "FREQ"))
+    gen.add_argument("--compress", action="store_true")
+    gen.set_defaults(run=_generate)
+
+    args = parser.parse_args(argv)
+    return args.run(args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

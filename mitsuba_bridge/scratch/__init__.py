@@ -1,0 +1,21 @@
+"""The scratch set: data model, file format v1, distributions, noise and polyline tools.
+
+Depends on numpy and the standard library only.
+"""
+from .distributions import Constant, Distribution, Gaussian, Uniform, parse_distribution
+from .fileformat import FORMAT, FORMAT_VERSION, dumps, load, loads, save
+from .generate import random_scratches, sample_parameters
+from .noise import GRADIENTS, noise_offset, simplex_noise, variation_factor, width_depth_at
+from .polyline import arc_parameter, edge_lengths, resample, scratch_lengths, vertex_arc_length
+from .scratchset import Profile, ScratchFormatError, ScratchSet
+from .segments import Segments, subdivide
+
+__all__ = [
+    "Constant", "Distribution", "Gaussian", "Uniform", "parse_distribution",
+    "FORMAT", "FORMAT_VERSION", "dumps", "load", "loads", "save",
+    "random_scratches", "sample_parameters",
+    "GRADIENTS", "noise_offset", "simplex_noise", "variation_factor", "width_depth_at",
+    "arc_parameter", "edge_lengths", "resample", "scratch_lengths", "vertex_arc_length",
+    "Profile", "ScratchFormatError", "ScratchSet",
+    "Segments", "subdivide",
+]

@@ -1,0 +1,116 @@
+"""The repository is an extension package with a Blender-free half (issue: foundation)."""
+import ast
+import os
+import subprocess
+import sys
+import tomllib
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_mitsuba_bridge_imports_with_bpy_unavailable():
+    # A meta-path finder that refuses bpy, mathutils and gpu, in a fresh interpreter.
+    code = """
+import sys, importlib, pkgutil
+class Block:
+    def find_spec(self, name, path=None, target=None):
+        if name.split('.')[0] in ('bpy', 'mathutils', 'gpu', 'bmesh'):
+            raise ImportError('blocked: ' + name)
+sys.meta_path.insert(0, Block())
+import mitsuba_bridge
+for info in pkgutil.walk_packages(mitsuba_bridge.__path__, 'mitsuba_bridge.'):
+    importlib.import_module(info.name)
+assert not any(m.split('.')[0] == 'bpy' for m in sys.modules)
+print('ok')
+"""
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip() == "ok"
+
+
+def test_importing_mitsuba_bridge_has_no_side_effects():
+    code = "import sys, mitsuba_bridge; print('mitsuba' in sys.modules, 'drjit' in sys.modules)"
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT)
+    assert result.stdout.split() == ["False", "False"], result.stderr
+
+
+def _python_files(folder):
+    return [p for p in (ROOT / folder).rglob("*.py") if "__pycache__" not in p.parts]
+
+
+@pytest.mark.parametrize("package", ["mitsuba_bridge", "addon"])
+def test_packages_use_relative_imports_only(package):
+    for path in _python_files(package):
+        tree = ast.parse(path.read_text(), str(path))
+        for node in ast.walk(tree):
+            names = []
+            if isinstance(node, ast.Import):
+                names = [alias.name for alias in node.names]
+            elif isinstance(node, ast.ImportFrom) and node.level == 0:
+                names = [node.module or ""]
+            for name in names:
+                top = name.split(".")[0]
+                assert top not in ("mitsuba_bridge", "addon", "scratch_iridescence"), \
+                    f"{path.relative_to(ROOT)} imports {name} absolutely"
+                if package == "mitsuba_bridge":
+                    assert top not in ("bpy", "mathutils", "gpu", "bmesh"), \
+                        f"{path.relative_to(ROOT)} imports {name}: mitsuba_bridge must not touch Blender"
+
+
+def test_top_level_layout_is_as_documented():
+    tracked = subprocess.run(["git", "ls-files"], capture_output=True, text=True, cwd=ROOT).stdout.split()
+    if not tracked:
+        pytest.skip("not a git checkout")
+    top = {path.split("/")[0] for path in tracked}
+    assert top <= {"addon", "blender_manifest.toml", "mitsuba_bridge", "tests", "docs", "README.md",
+                   "pyproject.toml", "Makefile", ".ci", ".gitignore", "__init__.py"}, top
+    assert len((ROOT / "__init__.py").read_text().strip().splitlines()) == 3
+
+
+def test_manifest_has_the_required_fields():
+    manifest = tomllib.loads((ROOT / "blender_manifest.toml").read_text())
+    assert manifest["id"] == "scratch_iridescence"
+    assert manifest["type"] == "add-on"
+    assert len(manifest["tagline"]) <= 64
+    for key in ("schema_version", "version", "name", "maintainer", "license", "blender_version_min"):
+        assert manifest[key]
+    assert manifest["version"] == tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["version"]
+
+
+def test_manifest_passes_blenders_validator():
+    bpy_spec = __import__("importlib.util").util.find_spec("bpy")
+    cli = Path(bpy_spec.origin).parent / "5.0/scripts/addons_core/bl_pkg/cli/blender_ext.py"
+    result = subprocess.run([sys.executable, str(cli), "validate", str(ROOT)], capture_output=True, text=True)
+    assert result.returncode == 0 and "Success" in result.stdout, result.stdout + result.stderr
+
+
+def test_root_is_importable_as_the_extension_package():
+    code = """
+import scratch_iridescence, os
+assert os.path.samefile(os.path.dirname(scratch_iridescence.__file__), %r)
+scratch_iridescence.register()
+scratch_iridescence.unregister()
+scratch_iridescence.register()
+scratch_iridescence.unregister()
+from scratch_iridescence.mitsuba_bridge import scratch
+print(scratch.FORMAT)
+""" % str(ROOT)
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd="/")
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip().endswith("scratch-iridescence/1")
+
+
+def test_command_line_generate_and_info(tmp_path):
+    out = tmp_path / "plate.npz"
+    run = lambda *args: subprocess.run([sys.executable, "-m", "mitsuba_bridge", *args],
+                                       capture_output=True, text=True, cwd=ROOT)
+    made = run("generate", str(out), "--count", "50", "--depth", "G[250, 80]", "--width", "U[1, 6]")
+    assert made.returncode == 0, made.stderr
+    info = run("info", str(out))
+    assert info.returncode == 0 and "50 scratches" in info.stdout
+    out.write_bytes(b"junk")
+    bad = run("info", str(out))
+    assert bad.returncode == 1 and "not a scratch file" in bad.stderr
