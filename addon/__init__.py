@@ -1,4 +1,22 @@
+"""The Blender side of Scratch Iridescence: storage, operators, tools, overlay, panels, rendering.
+
+Modules that define Blender classes expose ``register()`` / ``unregister()``;
+they are listed here in registration order (property groups first).
+"""
+from __future__ import annotations
+
+from . import properties
+
+_MODULES = (properties,)
+
+
 def register():
-    pass
+    """Register every class of the add-on."""
+    for module in _MODULES:
+        module.register()
+
+
 def unregister():
-    pass
+    """Unregister in reverse order."""
+    for module in reversed(_MODULES):
+        module.unregister()

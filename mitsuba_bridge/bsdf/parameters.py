@@ -1,0 +1,27 @@
+"""Names and defaults of the ``scratch_diffraction`` plugin, without importing Mitsuba.
+
+The plugin, the scene builder and the Blender add-on all read their defaults
+from here, so the three never disagree.
+"""
+from __future__ import annotations
+
+PLUGIN_NAME = "scratch_diffraction"
+
+#: Default coherence diameter δ_c in metres (σ = δ_c / 6 = 5 µm).  The mirror
+#: lobe's angular width is then λ / (2√2 π σ) ≈ 0.7° at 550 nm, about the sun's
+#: disc, and the paper's CD (≈ 21 tracks of 1.6 µm pitch per coherence area)
+#: implies δ_c ≈ 32 µm (MODEL.md §2).
+DEFAULT_COHERENCE_DIAMETER_M = 30e-6
+
+DEFAULT_MATERIAL = "Al"
+
+#: (code, label, description) of the base metals offered in the user interface;
+#: the code is a material name of Mitsuba's ``conductor`` plugin, or ``none``.
+BASE_MATERIALS = (
+    ("Al", "Aluminium", "Aluminium (Mitsuba conductor 'Al')"),
+    ("Ag", "Silver", "Silver (Mitsuba conductor 'Ag')"),
+    ("Au", "Gold", "Gold (Mitsuba conductor 'Au')"),
+    ("Cu", "Copper", "Copper (Mitsuba conductor 'Cu')"),
+    ("Cr", "Chromium", "Chromium (Mitsuba conductor 'Cr')"),
+    ("none", "Perfect Mirror", "Reflects everything (no Fresnel term)"),
+)

@@ -1,0 +1,89 @@
+"""Scratches stored in the .blend: exact round trips through save/reload and undo."""
+import numpy as np
+import pytest
+
+bpy = pytest.importorskip("bpy")
+from scratch_iridescence.addon import storage  # noqa: E402
+from scratch_iridescence.mitsuba_bridge import scratch  # noqa: E402
+
+
+@pytest.fixture
+def plate_set():
+    return scratch.random_scratches(2000, seed=11, width=scratch.Gaussian(4e-6, 1.3e-6),
+                                    depth=scratch.Gaussian(250e-9, 80e-9), vertices=6, curvature=1.0,
+                                    depth_variation=(1.1, 0.04))
+
+
+def test_new_object_has_no_scratches(plane):
+    assert not storage.has_scratches(plane)
+    assert storage.read_scratches(plane).count == 0
+    assert storage.scratch_summary(plane) == {"count": 0, "mean_width": 0.0, "mean_depth": 0.0}
+
+
+def test_write_read_is_exact_and_summarised(plane, plate_set):
+    storage.write_scratches(plane, plate_set)
+    assert storage.read_scratches(plane) == plate_set
+    summary = storage.scratch_summary(plane)
+    assert summary["count"] == 2000
+    assert summary["mean_width"] == pytest.approx(plate_set.width.mean())
+    assert summary["mean_depth"] == pytest.approx(plate_set.depth.mean())
+    assert storage.raw_scratch_bytes(plane) == scratch.dumps(plate_set)
+
+
+def test_rewriting_keeps_every_byte(plane, plate_set):
+    # Blender truncates re-assigned byte strings at the first NUL; storage must not.
+    storage.write_scratches(plane, plate_set.select(np.arange(10)))
+    storage.write_scratches(plane, plate_set)
+    assert storage.raw_scratch_bytes(plane) == scratch.dumps(plate_set)
+
+
+def test_token_changes_on_every_write(plane, plate_set):
+    storage.write_scratches(plane, plate_set)
+    first = storage.scratch_token(plane)
+    storage.write_scratches(plane, plate_set)
+    assert storage.scratch_token(plane) not in (None, first)
+
+
+def test_save_and_reload_is_bit_for_bit(plane, plate_set, tmp_path):
+    storage.write_scratches(plane, plate_set)
+    path = str(tmp_path / "scratched.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.open_mainfile(filepath=path)
+    obj = bpy.data.objects["Plane"]
+    assert storage.raw_scratch_bytes(obj) == scratch.dumps(plate_set)
+    storage._decoded.clear()  # decode from the file, not from the cache
+    assert storage.read_scratches(obj) == plate_set
+
+
+def test_undo_and_redo_restore_scratches(plane, plate_set):
+    bpy.ops.ed.undo_push(message="plane")
+    storage.write_scratches(plane, plate_set.select(np.arange(5)))
+    bpy.ops.ed.undo_push(message="five")
+    storage.write_scratches(plane, plate_set)
+    bpy.ops.ed.undo_push(message="all")
+    bpy.ops.ed.undo()
+    assert storage.read_scratches(bpy.data.objects["Plane"]) == plate_set.select(np.arange(5))
+    bpy.ops.ed.undo()
+    assert not storage.has_scratches(bpy.data.objects["Plane"])
+    bpy.ops.ed.redo()
+    bpy.ops.ed.redo()
+    assert storage.read_scratches(bpy.data.objects["Plane"]) == plate_set
+
+
+def test_clear(plane, plate_set):
+    storage.write_scratches(plane, plate_set)
+    storage.clear_scratches(plane)
+    assert not storage.has_scratches(plane) and storage.read_scratches(plane).count == 0
+
+
+def test_damaged_bytes_raise_a_clear_error(plane):
+    plane[storage.DATA_KEY] = b"not a scratch file"
+    plane[storage.SUMMARY_KEY] = {"count": 1, "mean_width": 1.0, "mean_depth": 1.0}
+    with pytest.raises(scratch.ScratchFormatError, match="not a scratch file"):
+        storage.read_scratches(plane)
+
+
+def test_object_settings_have_the_bsdf_defaults(plane):
+    from scratch_iridescence.mitsuba_bridge.bsdf.parameters import DEFAULT_COHERENCE_DIAMETER_M
+    assert plane.scratch.coherence_diameter == pytest.approx(DEFAULT_COHERENCE_DIAMETER_M)
+    assert plane.scratch.base_material == "Al" and plane.scratch.coherent
