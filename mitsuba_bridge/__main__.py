@@ -4,6 +4,7 @@ Commands
 --------
 info FILE...      summary of scratch files (validates them)
 generate OUT      write a random scratch file for a flat UV square
+render FOLDER     render a folder exported from Blender ("Export Mitsuba scene") to EXR
 """
 from __future__ import annotations
 
@@ -50,6 +51,39 @@ def _generate(args) -> int:
     return 0
 
 
+def _render(args) -> int:
+    import time
+
+    from .exr import write_exr
+    from .export import load_folder
+    from .render import render_passes
+    from .variants import VariantError, activate
+
+    try:
+        variant = activate(args.variant)
+    except (ImportError, VariantError) as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    started = time.perf_counter()
+    try:
+        scene = load_folder(args.folder)
+    except (OSError, RuntimeError) as error:
+        print(f"error: cannot load {args.folder}: {error}", file=sys.stderr)
+        return 1
+    spp = args.spp or scene.sensors()[0].sampler().sample_count()
+    width, height = scene.sensors()[0].film().crop_size()
+    print(f"{args.folder}: {width} x {height}, {spp} spp, {variant}, loaded in {time.perf_counter() - started:.2f} s",
+          flush=True)
+    progress = None
+    for progress in render_passes(scene, spp, seed=args.seed):
+        if not args.quiet:
+            print(f"  {progress.spp_done:6d}/{spp} spp  {100 * progress.fraction:5.1f} %  {progress.seconds:7.1f} s",
+                  flush=True)
+    write_exr(args.output, progress.image)
+    print(f"wrote {args.output} ({progress.seconds:.1f} s of rendering)")
+    return 0
+
+
 def main(argv=None) -> int:
     """Entry point of ``python -m mitsuba_bridge``."""
     parser = argparse.ArgumentParser(prog="python -m mitsuba_bridge", description=__doc__.split("\n")[0])
@@ -74,6 +108,16 @@ def main(argv=None) -> int:
     gen.add_argument("--width-variation", type=float, nargs=2, default=(0.0, 0.0), metavar=("AMP", "FREQ"))
     gen.add_argument("--compress", action="store_true")
     gen.set_defaults(run=_generate)
+
+    render = commands.add_parser("render", help="render an exported scene folder to a linear EXR")
+    render.add_argument("folder", help="folder written by Blender's Export > Mitsuba Scene (or its scene.xml)")
+    render.add_argument("-o", "--output", required=True, help="output .exr (linear RGBA)")
+    render.add_argument("--spp", type=int, default=0, help="samples per pixel (default: the scene's)")
+    render.add_argument("--seed", type=int, default=0)
+    render.add_argument("--variant", default="auto",
+                        help="Mitsuba variant (default auto: cuda_ad_spectral when available, else llvm_ad_spectral)")
+    render.add_argument("-q", "--quiet", action="store_true", help="no per-pass progress lines")
+    render.set_defaults(run=_render)
 
     args = parser.parse_args(argv)
     return args.run(args)

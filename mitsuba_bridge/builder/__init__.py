@@ -1,0 +1,69 @@
+"""Neutral scene description → Mitsuba scene dict (and, in memory, a loaded ``mi.Scene``).
+
+One small function per output type (``sensor_dict``, ``bsdf_dict``,
+``light_dict``, ``world_dict``), assembled here; a *resources* object decides
+whether heavy data stays in memory (rendering) or goes to files (export).
+A Mitsuba variant must be active before calling anything here.
+"""
+from __future__ import annotations
+
+from ..scene import RenderSettings, SceneDescription
+from .camera import film_dict, integrator_dict, sensor_dict
+from .lights import light_dict, world_dict
+from .materials import bsdf_dict, emitter_dict
+from .resources import InMemory, ToFolder, safe_name
+
+__all__ = ["scene_dict", "load_scene", "InMemory", "ToFolder", "sensor_dict", "film_dict", "integrator_dict",
+           "bsdf_dict", "emitter_dict", "light_dict", "world_dict", "material_id"]
+
+
+def material_id(key: str) -> str:
+    """The id of a material's top-level BSDF entry."""
+    return "mat-" + safe_name(key)
+
+
+def scene_dict(description: SceneDescription, settings: RenderSettings, resources=None) -> dict:
+    """The ``mi.load_dict`` dict of ``description``.
+
+    With :class:`ToFolder` resources materials are top-level entries that shapes
+    reference (written once in the XML); in memory the resources share one
+    loaded BSDF per material instead.
+    """
+    resources = InMemory() if resources is None else resources
+    shared = isinstance(resources, ToFolder)
+    result: dict = {
+        "type": "scene",
+        "integrator": integrator_dict(settings, description.film),
+        "sensor": sensor_dict(description.camera, description.film, settings),
+    }
+    bsdfs = {key: bsdf_dict(material, resources, key=key) for key, material in description.materials.items()
+             if any(shape.material == key for shape in description.shapes)}
+    if shared:
+        for key, bsdf in bsdfs.items():
+            result[material_id(key)] = bsdf
+    names = set(result)
+    for shape in description.shapes:
+        material = description.materials[shape.material]
+        bsdf = {"type": "ref", "id": material_id(shape.material)} if shared else bsdfs[shape.material]
+        name = _unique(names, "shape-" + safe_name(shape.name))
+        result[name] = resources.shape(shape, bsdf, emitter_dict(material), material_key=shape.material)
+    for index, light in enumerate(description.lights):
+        result[_unique(names, f"light-{index}")] = light_dict(light)
+    if description.world is not None:
+        result["world"] = world_dict(description.world, resources)
+    return result
+
+
+def load_scene(description: SceneDescription, settings: RenderSettings):
+    """The scene loaded in memory (no files written)."""
+    import mitsuba as mi
+
+    return mi.load_dict(scene_dict(description, settings, InMemory()))
+
+
+def _unique(names: set, name: str) -> str:
+    candidate, index = name, 1
+    while candidate in names:
+        candidate, index = f"{name}_{index:03d}", index + 1
+    names.add(candidate)
+    return candidate

@@ -1,0 +1,69 @@
+"""Camera, film, sampler and integrator dicts."""
+from __future__ import annotations
+
+import numpy as np
+
+from ..scene import Camera, Film, RenderSettings
+from .transform import FLIP_XZ, scale, to_mitsuba, translate
+
+__all__ = ["sensor_dict", "integrator_dict", "film_dict"]
+
+
+def film_dict(film: Film) -> dict:
+    """An RGBA ``hdrfilm`` with the crop window and reconstruction filter of ``film``."""
+    result = {
+        "type": "hdrfilm",
+        "width": film.width,
+        "height": film.height,
+        "pixel_format": "rgba",
+        "component_format": "float32",
+        "rfilter": {"type": film.filter},
+    }
+    if film.crop is not None:
+        x, y, w, h = film.crop
+        result.update(crop_offset_x=x, crop_offset_y=y, crop_width=w, crop_height=h)
+    return result
+
+
+def sensor_dict(camera: Camera, film: Film, settings: RenderSettings) -> dict:
+    """A ``perspective`` or ``orthographic`` sensor matching ``camera`` on ``film``.
+
+    Mitsuba's camera frame looks along +Z with +X to the *left*; Blender's along
+    −Z with +X to the right: a rotation by 180° about Y maps one onto the other.
+    """
+    aspect_hw = film.height / film.width
+    if camera.projection == "perspective":
+        sensor = {
+            "type": "perspective",
+            "fov": float(camera.fov_x_deg),
+            "fov_axis": "x",
+            # Mitsuba's offsets are fractions of the film size, positive moves the
+            # image content left / up; a window shifted right / up moves it left / down.
+            "principal_point_offset_x": float(camera.shift_x),
+            "principal_point_offset_y": -float(camera.shift_y),
+            "to_world": to_mitsuba(np.asarray(camera.to_world) @ FLIP_XZ),
+        }
+    else:
+        # Mitsuba's orthographic sensor sees [-1, 1] horizontally (and ±height/width
+        # vertically) of its local frame: scale by the half width; a lens shift
+        # moves the camera within its own plane.
+        half_width = 0.5 * camera.ortho_width
+        shift = translate(camera.shift_x * camera.ortho_width,
+                          camera.shift_y * camera.ortho_width * aspect_hw, 0.0)
+        sensor = {
+            "type": "orthographic",
+            "to_world": to_mitsuba(np.asarray(camera.to_world) @ shift @ FLIP_XZ
+                                   @ scale(half_width, half_width, 1.0)),
+        }
+    sensor.update(
+        near_clip=float(camera.near),
+        far_clip=float(camera.far),
+        film=film_dict(film),
+        sampler={"type": "independent", "sample_count": int(settings.spp), "seed": int(settings.seed)},
+    )
+    return sensor
+
+
+def integrator_dict(settings: RenderSettings, film: Film) -> dict:
+    """A path tracer; a transparent film hides directly seen emitters, as Blender's does."""
+    return {"type": "path", "max_depth": int(settings.max_depth), "hide_emitters": bool(film.transparent)}

@@ -1,0 +1,208 @@
+"""Where the heavy parts of a scene go: meshes, textures and scratch sets.
+
+The builder produces the same dict either way and asks a *resources* object
+for the heavy parts:
+
+* :class:`InMemory` (rendering): meshes become ``mi.Mesh`` objects filled from
+  numpy, textures ``mi.Bitmap`` objects or the user's own files, scratch sets
+  are handed to the BSDF as arrays — no temporary files.
+* :class:`ToFolder` (export): meshes are written once per mesh as PLY files in
+  object space and placed with ``to_world``, textures are copied or written as
+  EXR, scratch sets as format-v1 files; the dict references them by paths
+  relative to the folder.
+"""
+from __future__ import annotations
+
+import re
+import shutil
+from pathlib import Path
+
+import numpy as np
+
+from .. import scratch as scratch_io
+from ..scene import MeshData, ScratchedMetal, Shape, Texture
+from .transform import to_mitsuba
+
+__all__ = ["InMemory", "ToFolder", "srgb_to_linear", "world_geometry", "safe_name"]
+
+# Image rows run top-down, Blender's v runs bottom-up: look textures up at (u, 1 - v).
+_FLIP_V = np.array([[1.0, 0, 0, 0], [0, -1.0, 0, 1.0], [0, 0, 1.0, 0], [0, 0, 0, 1.0]])
+
+
+def safe_name(name: str) -> str:
+    """``name`` reduced to characters that are safe in file names and XML ids."""
+    return re.sub(r"[^A-Za-z0-9_-]", "_", name) or "unnamed"
+
+
+def srgb_to_linear(values: np.ndarray) -> np.ndarray:
+    """The sRGB transfer function inverted (colour channels only; alpha is left alone)."""
+    values = np.asarray(values, dtype=np.float32)
+    out = values.copy()
+    channels = min(values.shape[-1], 3) if values.ndim == 3 else None
+    part = out[..., :channels] if channels else out
+    low = part <= 0.04045
+    part[...] = np.where(low, part / 12.92, ((np.maximum(part, 0.0) + 0.055) / 1.055) ** 2.4)
+    return out
+
+
+def world_geometry(shape: Shape) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """(positions, faces, normals) of ``shape`` in world space.
+
+    Normals transform with the inverse transpose; a mirroring matrix reverses the
+    winding so that geometric and shading normals keep agreeing.
+    """
+    mesh = shape.mesh
+    matrix = np.asarray(shape.to_world, dtype=np.float64)
+    linear = matrix[:3, :3]
+    positions = mesh.positions @ linear.T.astype(np.float32)
+    positions += matrix[:3, 3].astype(np.float32)
+    faces = mesh.faces
+    mirrored = np.linalg.det(linear) < 0
+    if mirrored:
+        faces = faces[:, ::-1]
+    normals = None
+    if mesh.normals is not None:
+        normal_matrix = np.linalg.inv(linear).T.astype(np.float32)
+        normals = mesh.normals @ normal_matrix.T
+        length = np.linalg.norm(normals, axis=1, keepdims=True)
+        np.divide(normals, length, out=normals, where=length > 0)
+    return positions, np.ascontiguousarray(faces, dtype=np.uint32), normals
+
+
+def _bitmap_options(texture: Texture, colour: bool) -> dict:
+    return {
+        "to_uv": to_mitsuba(_FLIP_V),
+        "filter_type": "nearest" if texture.interpolation == "nearest" else "bilinear",
+        # Non-colour data must not be upsampled to spectra nor linearised.
+        "raw": not colour,
+    }
+
+
+class InMemory:
+    """Resources for rendering straight from memory."""
+
+    def __init__(self):
+        self._bsdfs: dict[str, object] = {}
+        self._textures: dict[tuple[str, bool], dict] = {}
+
+    def texture(self, texture: Texture, *, colour: bool) -> dict:
+        import mitsuba as mi
+
+        key = (texture.name, colour)
+        if key not in self._textures:
+            result = {"type": "bitmap", **_bitmap_options(texture, colour)}
+            if texture.path is not None:
+                result["filename"] = str(texture.path)
+            else:
+                pixels = srgb_to_linear(texture.pixels) if texture.srgb and colour else texture.pixels
+                result["bitmap"] = mi.Bitmap(np.ascontiguousarray(pixels[..., :3], dtype=np.float32))
+            self._textures[key] = result
+        return self._textures[key]
+
+    def environment(self, texture: Texture) -> dict:
+        """``filename`` or ``bitmap`` entries of an ``envmap`` (linear RGB)."""
+        import mitsuba as mi
+
+        if texture.path is not None:
+            return {"filename": str(texture.path)}
+        pixels = srgb_to_linear(texture.pixels) if texture.srgb else texture.pixels
+        return {"bitmap": mi.Bitmap(np.ascontiguousarray(pixels[..., :3], dtype=np.float32))}
+
+    def scratch_bsdf(self, material: ScratchedMetal, *, key: str) -> dict:
+        from ..bsdf import plugin_dict
+
+        return plugin_dict(material.scratches, **_scratch_settings(material))
+
+    def shape(self, shape: Shape, bsdf: dict, emitter: dict | None, *, material_key: str):
+        """An ``mi.Mesh`` in world space, filled from numpy, with its BSDF (shared per material)."""
+        import mitsuba as mi
+
+        if material_key not in self._bsdfs:
+            self._bsdfs[material_key] = mi.load_dict(bsdf)
+        props = mi.Properties()
+        props["bsdf"] = self._bsdfs[material_key]
+        if emitter is not None:
+            props["emitter"] = mi.load_dict(emitter)
+        positions, faces, normals = world_geometry(shape)
+        mesh = shape.mesh
+        result = mi.Mesh(shape.name, len(positions), len(faces), props=props,
+                         has_vertex_normals=normals is not None, has_vertex_texcoords=mesh.uvs is not None)
+        params = mi.traverse(result)
+        params["vertex_positions"] = mi.Float(positions.ravel())
+        params["faces"] = mi.UInt32(faces.ravel())
+        if normals is not None:
+            params["vertex_normals"] = mi.Float(normals.ravel())
+        if mesh.uvs is not None:
+            params["vertex_texcoords"] = mi.Float(np.ascontiguousarray(mesh.uvs, dtype=np.float32).ravel())
+        params.update()
+        return result
+
+
+class ToFolder:
+    """Resources for a self-contained export folder (paths in the dict are relative to it)."""
+
+    def __init__(self, folder):
+        self.folder = Path(folder)
+        self._meshes: dict[int, str] = {}
+        self._textures: dict[str, str] = {}
+        self._names: set[str] = set()
+
+    def _unique(self, subfolder: str, name: str, suffix: str) -> str:
+        base = f"{subfolder}/{safe_name(name)}"
+        candidate, index = base + suffix, 1
+        while candidate in self._names:
+            candidate, index = f"{base}_{index:03d}{suffix}", index + 1
+        self._names.add(candidate)
+        (self.folder / subfolder).mkdir(parents=True, exist_ok=True)
+        return candidate
+
+    def _texture_file(self, texture: Texture) -> str:
+        if texture.name not in self._textures:
+            if texture.path is not None:
+                suffix = Path(texture.path).suffix.lower() or ".png"
+                relative = self._unique("textures", Path(texture.name).stem, suffix)
+                shutil.copyfile(texture.path, self.folder / relative)
+            else:
+                from ..exr import write_exr
+
+                relative = self._unique("textures", Path(texture.name).stem, ".exr")
+                pixels = srgb_to_linear(texture.pixels) if texture.srgb else texture.pixels
+                write_exr(self.folder / relative, pixels[..., :3])
+            self._textures[texture.name] = relative
+        return self._textures[texture.name]
+
+    def texture(self, texture: Texture, *, colour: bool) -> dict:
+        return {"type": "bitmap", "filename": self._texture_file(texture), **_bitmap_options(texture, colour)}
+
+    def environment(self, texture: Texture) -> dict:
+        return {"filename": self._texture_file(texture)}
+
+    def scratch_bsdf(self, material: ScratchedMetal, *, key: str) -> dict:
+        from ..bsdf import plugin_dict
+
+        relative = self._unique("scratches", key, ".npz")
+        scratch_io.save(material.scratches, self.folder / relative)
+        return plugin_dict(filename=relative, **_scratch_settings(material))
+
+    def shape(self, shape: Shape, bsdf: dict, emitter: dict | None, *, material_key: str) -> dict:
+        """A ``ply`` shape: the mesh file is written once and shared by its instances."""
+        from ..ply import write_ply
+
+        mesh: MeshData = shape.mesh
+        if id(mesh) not in self._meshes:
+            relative = self._unique("meshes", mesh.name, ".ply")
+            write_ply(self.folder / relative, mesh.positions, mesh.faces, mesh.normals, mesh.uvs)
+            self._meshes[id(mesh)] = relative
+        result = {"type": "ply", "filename": self._meshes[id(mesh)], "to_world": to_mitsuba(shape.to_world),
+                  "bsdf": bsdf}
+        if emitter is not None:
+            result["emitter"] = emitter
+        return result
+
+
+def _scratch_settings(material: ScratchedMetal) -> dict:
+    settings = dict(coherence_diameter=material.coherence_diameter_m, unit_scale=material.unit_scale,
+                    material=material.material, coherent=material.coherent)
+    if material.diffuse_reflectance is not None and any(c > 0 for c in material.diffuse_reflectance):
+        settings["diffuse_reflectance"] = tuple(float(c) for c in material.diffuse_reflectance)
+    return settings

@@ -1,0 +1,63 @@
+"""Which Mitsuba variant renders: spectral always (diffraction colours need wavelengths), CUDA when present."""
+from __future__ import annotations
+
+__all__ = ["SPECTRAL_VARIANTS", "VariantError", "choose_variant", "activate"]
+
+#: In order of preference for ``"auto"``.
+SPECTRAL_VARIANTS = ("cuda_ad_spectral", "llvm_ad_spectral")
+
+
+class VariantError(RuntimeError):
+    """No usable spectral Mitsuba variant (or an unusable one was asked for)."""
+
+
+def choose_variant(requested: str = "auto") -> str:
+    """The Mitsuba variant to use for ``requested`` (``"auto"`` or a variant name).
+
+    ``"auto"`` takes CUDA when Dr.Jit finds a CUDA device, else LLVM (CPU).
+    Raises :class:`VariantError` with a fix when neither works.
+    """
+    import drjit as dr
+    import mitsuba as mi
+
+    available = set(mi.variants())
+    backends = {"cuda_ad_spectral": dr.JitBackend.CUDA, "llvm_ad_spectral": dr.JitBackend.LLVM}
+    if requested != "auto":
+        if requested not in available:
+            raise VariantError(f"Mitsuba variant '{requested}' is not part of this Mitsuba build "
+                               f"(available: {', '.join(sorted(available))})")
+        if "spectral" not in requested:
+            raise VariantError(f"variant '{requested}' is not spectral: diffraction colours need a "
+                               f"spectral variant such as {' or '.join(SPECTRAL_VARIANTS)}")
+        backend = backends.get(requested)
+        if backend is not None and not dr.has_backend(backend):
+            raise VariantError(_missing_backend_message(requested))
+        return requested
+    for variant in SPECTRAL_VARIANTS:
+        if variant in available and dr.has_backend(backends[variant]):
+            return variant
+    raise VariantError(_missing_backend_message("llvm_ad_spectral"))
+
+
+def _missing_backend_message(variant: str) -> str:
+    if variant.startswith("cuda"):
+        return (f"Mitsuba variant '{variant}' needs an NVIDIA GPU with a CUDA driver; none was found. "
+                "Choose 'Automatic' or the CPU (LLVM) variant")
+    return ("Mitsuba's CPU backend needs the LLVM library (libLLVM 16 or newer) and found none. "
+            "Install it (Debian/Ubuntu: 'apt install libllvm19'; macOS: 'brew install llvm'; Windows: "
+            "the LLVM installer) or point DRJIT_LIBLLVM_PATH at the library")
+
+
+def activate(requested: str = "auto") -> str:
+    """Set the chosen variant and register the project's plugins for it; returns the variant."""
+    import mitsuba as mi
+
+    variant = choose_variant(requested)
+    if mi.variant() != variant:
+        mi.set_variant(variant)
+    try:
+        from .bsdf import register
+    except ImportError:  # TODO(render): remove once the BSDF branch is merged
+        return variant
+    register()
+    return variant
