@@ -5,9 +5,9 @@ they are listed here in registration order (property groups first).
 """
 from __future__ import annotations
 
-from . import properties
+from . import properties, render
 
-_MODULES = (properties,)
+_MODULES = (properties, render)
 
 
 def register():

@@ -1,0 +1,102 @@
+"""Rendering one frame for the render engine: gather → build → progressive passes → Combined pass.
+
+Kept apart from the ``RenderEngine`` class so that it reads top to bottom and
+every failure ends in ``report``/``error_set`` rather than in a silent black
+image.  Nothing is written to disk: meshes, textures and scratches go to
+Mitsuba in memory.
+"""
+from __future__ import annotations
+
+import traceback
+
+import numpy as np
+
+from .gather import GatherError, gather_scene, gather_settings
+
+__all__ = ["render_frame", "MITSUBA_MISSING", "combined_rect"]
+
+MITSUBA_MISSING = (
+    "Mitsuba is not available in Blender's Python ({error}). Install the Scratch Iridescence extension zip "
+    "built for your platform (it bundles the mitsuba, drjit and OpenEXR wheels), or install "
+    "'mitsuba==3.9.1 drjit==1.5.0' into Blender's Python, then restart Blender")
+
+#: Target duration of one progressive pass: the image refreshes and Esc is honoured this often.
+PASS_SECONDS = 1.0
+
+
+def combined_rect(image: np.ndarray, transparent: bool) -> np.ndarray:
+    """Mitsuba's RGBA image (row 0 at the top) as Blender's Combined pass rect (row 0 at the bottom)."""
+    rect = np.ascontiguousarray(image[::-1], dtype=np.float32).reshape(-1, 4)
+    if not transparent:
+        rect[:, 3] = 1.0
+    return rect
+
+
+def _fail(engine, message: str) -> None:
+    engine.report({"ERROR"}, message)
+    engine.error_set(message)
+
+
+def _bridge():
+    """The bridge modules that need Mitsuba, or an ImportError naming what is missing."""
+    import drjit  # noqa: F401  (imported here to report a missing wheel by name)
+    import mitsuba  # noqa: F401
+
+    from ...mitsuba_bridge import builder, render, variants
+    return builder, render, variants
+
+
+def render_frame(engine, depsgraph) -> None:
+    """Render the frame of ``depsgraph`` into ``engine``'s result (the body of ``RenderEngine.render``)."""
+    try:
+        builder, passes, variants = _bridge()
+    except ImportError as error:
+        _fail(engine, MITSUBA_MISSING.format(error=error))
+        return
+    scene = depsgraph.scene
+    try:
+        settings = gather_settings(scene)
+        engine.update_stats("", "Mitsuba | Choosing device")
+        variant = variants.activate(settings.variant)
+        engine.update_stats("", "Mitsuba | Gathering scene")
+        description = gather_scene(depsgraph, camera=getattr(engine, "camera_override", None))
+    except (GatherError, variants.VariantError) as error:
+        _fail(engine, str(error))
+        return
+    except Exception as error:  # an add-on bug must not look like a black render
+        traceback.print_exc()
+        _fail(engine, f"Mitsuba Scratch: could not prepare the scene: {type(error).__name__}: {error}")
+        return
+    for warning in description.warnings:
+        engine.report({"WARNING"}, warning)
+    if engine.test_break():
+        return
+
+    width, height = description.film.size
+    result = engine.begin_result(0, 0, width, height, layer=depsgraph.view_layer.name)
+    cancelled = False
+    try:
+        if (result.resolution_x, result.resolution_y) != (width, height):
+            raise RuntimeError(f"Blender expects a {result.resolution_x} x {result.resolution_y} image but the "
+                               f"scene gives {width} x {height}")
+        engine.update_stats("", f"Mitsuba | Loading {len(description.shapes)} shapes "
+                                f"({description.triangle_count:,} triangles)")
+        mi_scene = builder.load_scene(description, settings)
+        combined = result.layers[0].passes["Combined"]
+        for progress in passes.render_passes(mi_scene, settings.spp, seed=settings.seed,
+                                             pass_seconds=PASS_SECONDS):
+            combined.rect = combined_rect(progress.image, description.film.transparent)
+            engine.update_result(result)
+            engine.update_progress(progress.fraction)
+            engine.update_stats("", f"Mitsuba ({variant}) | Sample {progress.spp_done}/{progress.spp_total} | "
+                                    f"{progress.seconds:.1f} s")
+            if not progress.finished and engine.test_break():
+                cancelled = True
+                break
+    except Exception as error:
+        traceback.print_exc()
+        _fail(engine, f"Mitsuba Scratch: rendering failed: {type(error).__name__}: {error}")
+    finally:
+        engine.end_result(result)
+    if cancelled:
+        engine.report({"INFO"}, "Mitsuba Scratch: render cancelled; the image holds the samples done so far")

@@ -1,0 +1,144 @@
+"""Evaluated depsgraph → :class:`~mitsuba_bridge.scene.SceneDescription`.
+
+The one entry point is :func:`gather_scene`; everything Blender-specific
+(power conventions, sensor fit, node trees, instancing) is resolved here, so
+the builder on the other side sees only physical quantities and numpy arrays.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ....mitsuba_bridge.scene import (Emission, MeshData, RenderSettings, SceneDescription, ScratchedMetal,
+                                      Shape, Texture)
+from ....mitsuba_bridge.scratch import ScratchFormatError, ScratchSet
+from ...storage import has_scratches, read_scratches
+from .camera import gather_camera, gather_film
+from .lights import gather_light
+from .materials import gather_material
+from .meshes import mesh_parts
+from .report import GatherError, Warnings
+from .world import gather_world
+
+__all__ = ["gather_scene", "gather_settings", "GatherError", "Warnings"]
+
+#: Object types that evaluate to a mesh.
+GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
+
+
+def gather_settings(scene) -> RenderSettings:
+    settings = scene.scratch_render
+    return RenderSettings(spp=settings.samples, max_depth=settings.max_depth, seed=settings.seed,
+                          variant=settings.variant)
+
+
+def gather_scene(depsgraph, *, camera=None) -> SceneDescription:
+    """Gather what ``depsgraph`` (render or viewport) shows through ``camera`` (default: the scene's).
+
+    Raises :class:`GatherError` when nothing sensible can be rendered (no camera);
+    everything else that is not supported becomes a warning in the result.
+    """
+    scene = depsgraph.scene
+    warnings = Warnings()
+    film = gather_film(scene, scene.scratch_render.film_filter)
+    camera_description = gather_camera(scene, camera if camera is not None else scene.camera, warnings)
+    materials, shapes, lights, meshes = {}, [], [], {}
+    for instance in depsgraph.object_instances:
+        obj = instance.object
+        if obj.original.hide_render:
+            continue  # a viewport depsgraph (export) also holds objects that do not render
+        if obj.type == "LIGHT":
+            light = gather_light(obj, np.array(instance.matrix_world), warnings)
+            if light is not None:
+                lights.append(light)
+        elif obj.type in GEOMETRY_TYPES:
+            shapes += _gather_object(obj, np.array(instance.matrix_world), scene, materials, meshes, warnings)
+        elif obj.type in ("CURVES", "POINTCLOUD", "VOLUME", "GREASEPENCIL"):
+            warnings.warn(f"{obj.type.lower()} objects are not supported and are not rendered ('{obj.name}')",
+                          key=("type", obj.type))
+    world = gather_world(scene.world, warnings)
+    if not shapes and not lights and world is None:
+        warnings.warn("the scene has no visible objects, lights or world: the image is black")
+    elif not lights and world is None and not any(_emits(m) for m in materials.values()):
+        warnings.warn("the scene has no lights, no emissive material and a black world: the image is black; "
+                      "add a light or a world colour")
+    return SceneDescription(film=film, camera=camera_description, shapes=tuple(shapes), materials=materials,
+                            lights=tuple(lights), world=world, warnings=warnings.as_tuple())
+
+
+def _emits(material) -> bool:
+    return isinstance(material, Emission)
+
+
+def _gather_object(obj, matrix, scene, materials: dict, meshes: dict, warnings: Warnings) -> list[Shape]:
+    original = obj.original
+    scratched = has_scratches(original)
+    key = (obj.name, obj.data.as_pointer() if obj.data is not None else 0, scratched)
+    if key not in meshes:
+        meshes[key] = _object_parts(obj, scratched)
+    parts = meshes[key]
+    shapes = []
+    for slot, mesh in parts:
+        if scratched:
+            material_key = f"scratches:{original.name}"
+            if material_key not in materials:
+                materials[material_key] = _scratched_metal(original, scene, mesh.uvs is not None, warnings)
+        else:
+            material = obj.material_slots[slot].material if slot < len(obj.material_slots) else None
+            material_key = "default" if material is None else f"material:{material.name}"
+            if material_key not in materials:
+                materials[material_key] = gather_material(material, warnings)
+            if mesh.uvs is None and _uses_texture(materials[material_key]):
+                warnings.warn(f"object '{obj.name}' has no UV map but its material uses an image texture: "
+                              "the texture is read at UV (0, 0)", key=("no-uv", obj.name))
+        shapes.append(Shape(name=mesh.name, mesh=mesh, to_world=matrix, material=material_key))
+    return shapes
+
+
+def _object_parts(obj, scratched: bool):
+    """Mesh parts of an evaluated object (scratched objects stay whole: one BSDF covers them)."""
+    if obj.type == "MESH":
+        parts = mesh_parts(obj.data, obj.name)
+    else:
+        mesh = obj.to_mesh()
+        try:
+            parts = mesh_parts(mesh, obj.name) if mesh is not None else []
+        finally:
+            obj.to_mesh_clear()
+    if scratched and len(parts) > 1:
+        parts = [(0, _join([mesh for _, mesh in parts], obj.name))]
+    return parts
+
+
+def _join(meshes, name) -> MeshData:
+    offsets = np.cumsum([0] + [len(m.positions) for m in meshes[:-1]])
+    has = lambda attribute: all(getattr(m, attribute) is not None for m in meshes)  # noqa: E731
+    return MeshData(
+        name, np.concatenate([m.positions for m in meshes]),
+        np.concatenate([m.faces + np.uint32(o) for m, o in zip(meshes, offsets)]),
+        np.concatenate([m.normals for m in meshes]) if has("normals") else None,
+        np.concatenate([m.uvs for m in meshes]) if has("uvs") else None)
+
+
+def _uses_texture(material) -> bool:
+    inner = getattr(material, "bsdf", None) or material
+    return any(isinstance(getattr(inner, name, None), Texture)
+               for name in ("reflectance", "base_color", "metallic", "roughness", "color"))
+
+
+def _scratched_metal(obj, scene, has_uvs: bool, warnings: Warnings) -> ScratchedMetal:
+    """The scratch BSDF settings of ``obj`` (its scratches, base metal, coherence)."""
+    settings = obj.scratch
+    unit_scale = float(scene.unit_settings.scale_length)
+    try:
+        scratches = read_scratches(obj)
+    except ScratchFormatError as error:
+        warnings.warn(f"object '{obj.name}': its scratches cannot be read ({error}): rendered without scratches")
+        scratches = ScratchSet.empty()
+    if not has_uvs and scratches.count:
+        warnings.warn(f"object '{obj.name}' carries scratches but has no UV map: rendered without scratches; "
+                      "add a UV map (the scratches live in UV space)")
+        scratches = ScratchSet.empty()
+    diffuse = tuple(float(c) for c in settings.diffuse_reflectance)
+    return ScratchedMetal(scratches=scratches, coherence_diameter_m=float(settings.coherence_diameter) * unit_scale,
+                          unit_scale=unit_scale, material=settings.base_material, coherent=bool(settings.coherent),
+                          diffuse_reflectance=diffuse if any(diffuse) else None)

@@ -1,0 +1,58 @@
+"""Image Texture and Environment Texture nodes → :class:`Texture`.
+
+Images with a file on disk are passed by path (Mitsuba reads PNG, JPEG, EXR,
+HDR...); packed, generated or edited-in-memory images by their pixels.  A
+missing image becomes Blender's own "missing texture" magenta, with a warning.
+"""
+from __future__ import annotations
+
+import os
+
+import bpy
+import numpy as np
+
+from ....mitsuba_bridge.scene import Texture
+from .report import Warnings
+
+__all__ = ["gather_image", "MISSING"]
+
+MISSING = (1.0, 0.0, 1.0)  # what Blender renders for a missing image
+
+
+def _missing(name: str) -> Texture:
+    return Texture(name=f"missing:{name}", pixels=np.array([[MISSING]], dtype=np.float32), srgb=False)
+
+
+def _is_srgb(image) -> bool:
+    return image.colorspace_settings.name.lower().startswith("srgb")
+
+
+def gather_image(node, warnings: Warnings, *, owner: str) -> Texture:
+    """The texture of an image node (``owner`` names the material or world for warnings)."""
+    image = node.image
+    if image is None:
+        warnings.warn(f"{owner}: image node '{node.name}' has no image: rendered magenta")
+        return _missing(f"{owner}/{node.name}")
+    interpolation = "nearest" if getattr(node, "interpolation", "Linear") == "Closest" else "bilinear"
+    if image.source == "TILED":
+        warnings.warn(f"{owner}: UDIM image '{image.name}' is not supported: only its first tile is used")
+    path = bpy.path.abspath(image.filepath_raw, library=image.library) if image.filepath_raw else ""
+    in_memory = image.packed_file is not None or image.source in ("GENERATED", "VIEWER") or image.is_dirty
+    if not in_memory and image.source in ("FILE", "TILED", "SEQUENCE") and os.path.isfile(path):
+        return Texture(name=image.name, path=os.path.normpath(path), srgb=_is_srgb(image),
+                       interpolation=interpolation)
+    width, height = image.size
+    if width == 0 or height == 0:  # Blender found no file (size is read lazily from it)
+        warnings.warn(f"{owner}: image '{image.name}' is missing ({path or 'no file'}): rendered magenta")
+        return _missing(image.name)
+    channels = image.channels
+    pixels = np.empty(width * height * channels, dtype=np.float32)
+    image.pixels.foreach_get(pixels)
+    # Blender stores rows bottom-up; textures here are top-down.
+    pixels = pixels.reshape(height, width, channels)[::-1]
+    if channels < 3:
+        pixels = np.repeat(pixels[..., :1], 3, axis=2)
+    # Float buffers hold linear values; byte buffers the encoded ones.
+    return Texture(name=image.name, pixels=np.ascontiguousarray(pixels[..., :3]),
+                   srgb=_is_srgb(image) and not image.is_float, interpolation=interpolation)
+

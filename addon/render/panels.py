@@ -1,0 +1,100 @@
+"""Render properties panels of the engine, and Blender's own panels made available to it.
+
+Blender shows a built-in panel only for the engines in its ``COMPAT_ENGINES``;
+a new engine would otherwise lose the output, camera, light, material and
+world panels.  Every engine-neutral panel that EEVEE shows is opened to this
+engine too (EEVEE's own sampling, ray tracing, light probe... panels are not).
+"""
+from __future__ import annotations
+
+import bpy
+
+from .engine import ENGINE_ID
+
+__all__ = ["SCRATCH_PT_render_sampling", "SCRATCH_PT_render_film", "SCRATCH_PT_render_device", "compatible_panels"]
+
+# Panels EEVEE shows whose settings mean nothing to this engine.
+_SKIP_WORDS = ("eevee", "lightprobe", "freestyle", "gpencil", "grease_pencil", "shadow_terminator", "passes",
+               "light_distance", "light_influence", "light_shadow")
+# EEVEE-named panels that are in fact the generic material, world and light editors.
+_KEEP = {"EEVEE_MATERIAL_PT_context_material", "EEVEE_MATERIAL_PT_surface", "EEVEE_WORLD_PT_surface",
+         "DATA_PT_EEVEE_light"}
+
+
+def compatible_panels():
+    """Blender's panels that should also appear for this engine."""
+    for panel in bpy.types.Panel.__subclasses__():
+        engines = getattr(panel, "COMPAT_ENGINES", None)
+        if not engines or "BLENDER_EEVEE" not in engines:
+            continue
+        name = panel.__name__
+        if name in _KEEP or not any(word in name.lower() for word in _SKIP_WORDS):
+            yield panel
+
+
+class _RenderPanel:
+    bl_space_type = "PROPERTIES"
+    bl_region_type = "WINDOW"
+    bl_context = "render"
+    COMPAT_ENGINES = {ENGINE_ID}
+
+    @classmethod
+    def poll(cls, context):
+        return context.engine in cls.COMPAT_ENGINES
+
+
+class SCRATCH_PT_render_sampling(_RenderPanel, bpy.types.Panel):
+    bl_label = "Sampling"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        settings = context.scene.scratch_render
+        layout.prop(settings, "samples")
+        layout.prop(settings, "seed")
+        layout.prop(settings, "max_depth")
+
+
+class SCRATCH_PT_render_film(_RenderPanel, bpy.types.Panel):
+    bl_label = "Film"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.prop(context.scene.scratch_render, "film_filter")
+        layout.prop(context.scene.render, "film_transparent", text="Transparent")
+
+
+class SCRATCH_PT_render_device(_RenderPanel, bpy.types.Panel):
+    bl_label = "Device"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.prop(context.scene.scratch_render, "variant")
+        try:
+            import mitsuba
+        except ImportError:
+            layout.label(text="Mitsuba is not installed: reinstall the extension for your platform", icon="ERROR")
+        else:
+            layout.label(text=f"Mitsuba {mitsuba.__version__}", icon="INFO")
+
+
+_CLASSES = (SCRATCH_PT_render_sampling, SCRATCH_PT_render_film, SCRATCH_PT_render_device)
+_opened: list = []
+
+
+def register():
+    for cls in _CLASSES:
+        bpy.utils.register_class(cls)
+    for panel in compatible_panels():
+        panel.COMPAT_ENGINES.add(ENGINE_ID)
+        _opened.append(panel)
+
+
+def unregister():
+    for panel in _opened:
+        panel.COMPAT_ENGINES.discard(ENGINE_ID)
+    _opened.clear()
+    for cls in reversed(_CLASSES):
+        bpy.utils.unregister_class(cls)

@@ -1,0 +1,50 @@
+"""Render settings of a scene: ``scene.scratch_render`` (one PointerProperty on Scene)."""
+from __future__ import annotations
+
+import bpy
+from bpy.props import EnumProperty, IntProperty
+
+from ...mitsuba_bridge.scene import FILTERS
+
+__all__ = ["SCRATCH_PG_render"]
+
+_FILTER_LABELS = {
+    "box": ("Box", "One pixel wide box: every glint lands in exactly one pixel (best for scratches)"),
+    "tent": ("Tent", "Triangle filter, two pixels wide: slightly softer"),
+    "gaussian": ("Gaussian", "Gaussian filter: smooth, but smears glints over neighbouring pixels"),
+}
+_FILTER_ITEMS = [(key, *_FILTER_LABELS[key]) for key in FILTERS]
+
+
+class SCRATCH_PG_render(bpy.types.PropertyGroup):
+    """How the Mitsuba Scratch engine renders this scene."""
+
+    samples: IntProperty(
+        name="Samples", description="Samples per pixel; glints and diffraction colours need many",
+        default=64, min=1, soft_max=4096)
+    max_depth: IntProperty(
+        name="Max Depth", description="Longest light path in segments: 1 shows only light sources, 2 adds "
+                                      "direct lighting, each more adds one bounce",
+        default=8, min=1, soft_max=64)
+    seed: IntProperty(name="Seed", description="Seed of the random samples (change for another noise pattern)",
+                      default=0, min=0)
+    variant: EnumProperty(
+        name="Device",
+        description="Mitsuba variant; all are spectral, which diffraction colours need",
+        items=[("auto", "Automatic", "The GPU (CUDA) when an NVIDIA GPU is available, else the CPU"),
+               ("cuda_ad_spectral", "GPU (CUDA)", "Mitsuba's cuda_ad_spectral variant (NVIDIA GPUs)"),
+               ("llvm_ad_spectral", "CPU (LLVM)", "Mitsuba's llvm_ad_spectral variant (vectorised CPU)")],
+        default="auto")
+    film_filter: EnumProperty(
+        name="Pixel Filter", description="Reconstruction filter of the film",
+        items=_FILTER_ITEMS, default="box")
+
+
+def register():
+    bpy.utils.register_class(SCRATCH_PG_render)
+    bpy.types.Scene.scratch_render = bpy.props.PointerProperty(type=SCRATCH_PG_render)
+
+
+def unregister():
+    del bpy.types.Scene.scratch_render
+    bpy.utils.unregister_class(SCRATCH_PG_render)
