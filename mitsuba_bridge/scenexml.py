@@ -25,7 +25,7 @@ PLUGIN_TAGS = {
     **dict.fromkeys(("independent", "stratified", "multijitter", "ldsampler"), "sampler"),
     **dict.fromkeys(("ply", "obj", "serialized", "rectangle", "disk", "sphere", "cube", "cylinder"), "shape"),
     **dict.fromkeys(("diffuse", "principled", "principledthin", "conductor", "roughconductor", "plastic",
-                     "roughplastic", "dielectric", "roughdielectric", "twosided", "blendbsdf", "mask",
+                     "roughplastic", "dielectric", "roughdielectric", "twosided", "blendbsdf", "mask", "null",
                      "scratch_diffraction"), "bsdf"),
     **dict.fromkeys(("area", "point", "spot", "directional", "constant", "envmap", "sunsky"), "emitter"),
     **dict.fromkeys(("bitmap", "checkerboard"), "texture"),

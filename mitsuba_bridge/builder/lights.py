@@ -11,10 +11,15 @@ import math
 import numpy as np
 
 from ..scene import AreaLight, ConstantWorld, EnvironmentWorld, PointLight, SkyWorld, SpotLight, SunLight
-from .materials import BLACK, rgb
+from .materials import rgb
 from .transform import FLIP_YZ, orthonormal, scale, to_mitsuba
 
-__all__ = ["light_dict", "world_dict", "ENVMAP_BASIS"]
+__all__ = ["light_dict", "world_dict", "ENVMAP_BASIS", "SEE_THROUGH"]
+
+#: The surface of an emitting light shape: rays pass through it, so that a
+#: light's back (or a sphere light's far side) does not show as a black hole.
+#: Blender's lights are invisible to camera rays; here their emitting side is seen.
+SEE_THROUGH = {"type": "null"}
 
 #: Mitsuba's ``envmap`` local frame expressed in Blender's world: it puts image
 #: column u = 0.5 on local +Z and the top row on local +Y; Blender puts u = 0.5
@@ -35,7 +40,7 @@ def light_dict(light) -> dict:
         # A Lambertian sphere of radius r with radiance L has intensity π r² L in every direction.
         radiance = np.asarray(light.intensity) / (math.pi * light.radius ** 2)
         return {"type": "sphere", "center": [float(c) for c in light.position], "radius": float(light.radius),
-                "bsdf": BLACK, "emitter": {"type": "area", "radiance": rgb(radiance)}}
+                "bsdf": SEE_THROUGH, "emitter": {"type": "area", "radiance": rgb(radiance)}}
     if isinstance(light, SpotLight):
         cutoff = float(np.clip(light.cutoff_deg, 1e-3, 90.0))
         beam = float(np.clip(light.beam_deg, 0.0, cutoff * (1 - 1e-4)))  # Mitsuba needs beam < cutoff
@@ -47,7 +52,7 @@ def light_dict(light) -> dict:
     if isinstance(light, AreaLight):
         # Mitsuba's rectangle spans [-1, 1]², its disk has radius 1; both face +Z.
         matrix = np.asarray(light.to_world) @ scale(0.5 * light.size_x, 0.5 * light.size_y, 1.0) @ FLIP_YZ
-        return {"type": light.shape, "to_world": to_mitsuba(matrix), "bsdf": BLACK,
+        return {"type": light.shape, "to_world": to_mitsuba(matrix), "bsdf": SEE_THROUGH,
                 "emitter": {"type": "area", "radiance": rgb(light.radiance)}}
     raise TypeError(f"unknown light type {type(light).__name__}")
 

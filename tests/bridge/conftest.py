@@ -1,0 +1,13 @@
+"""Bridge fixtures: the LLVM spectral variant (the CI machine has no GPU) and small scenes built in code."""
+import pytest
+
+mi = pytest.importorskip("mitsuba")
+
+
+@pytest.fixture(scope="session")
+def variant():
+    """``llvm_ad_spectral`` with the project's plugins registered."""
+    from mitsuba_bridge import variants
+
+    return variants.activate("llvm_ad_spectral")
+

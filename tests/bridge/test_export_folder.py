@@ -1,0 +1,112 @@
+"""Export folders: scene.xml + PLY + textures (+ scratch files), rendered without Blender."""
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bridge_scenes import camera_at, quad, simple_scene
+from mitsuba_bridge import builder, export, render
+from mitsuba_bridge import scene as S
+from mitsuba_bridge.exr import read_exr, write_exr
+from mitsuba_bridge.ply import write_ply
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def rich_scene(tmp_path):
+    """Textures from a file and from pixels, an instanced mesh, every light and a sky."""
+    image_file = tmp_path / "source" / "checker.exr"
+    image_file.parent.mkdir()
+    checker = np.kron(np.indices((4, 4)).sum(axis=0) % 2, np.ones((4, 4)))[..., None] * np.array([1.0, 0.5, 0.2])
+    write_exr(image_file, checker.astype(np.float32))
+    file_texture = S.Texture("checker.exr", path=str(image_file), srgb=False)
+    pixel_texture = S.Texture("ramp", pixels=np.linspace(0, 1, 48, dtype=np.float32).reshape(4, 4, 3), srgb=True)
+    mesh = quad(1.0, "tile")
+    shapes = []
+    for i, key in enumerate(("file", "pixels", "file")):
+        matrix = np.eye(4)
+        matrix[:3, 3] = (i - 1.0, 0, 0)
+        shapes.append(S.Shape(f"tile{i}", mesh, matrix, key))
+    spot = np.eye(4)
+    spot[:3, 3] = (0, 0, 2)
+    area = spot.copy()
+    area[:3, 3] = (0.5, 0.5, 1.5)
+    return simple_scene(
+        film=S.Film(40, 30, crop=(5, 5, 30, 20)),
+        camera=S.Camera(camera_at((0, 0, 3)), fov_x_deg=70, shift_x=0.05),
+        shapes=shapes,
+        materials={"file": S.Principled(base_color=file_texture, roughness=0.4),
+                   "pixels": S.Diffuse(pixel_texture)},
+        lights=[S.PointLight((1, 1, 1), (1, 1, 1)), S.SpotLight(spot, (2, 2, 2), 40, 30),
+                S.SunLight((0.2, 0.1, -1), (0.5, 0.5, 0.5)), S.AreaLight(area, "disk", 0.3, 0.2, (3, 3, 3))],
+        world=S.SkyWorld((0.3, 0.5, 0.8)))
+
+
+def test01_folder_holds_scene_meshes_and_textures_with_relative_paths(variant, tmp_path):
+    scene_file = export.export_folder(rich_scene(tmp_path), S.RenderSettings(spp=4), tmp_path / "out")
+    files = sorted(str(p.relative_to(tmp_path / "out")) for p in (tmp_path / "out").rglob("*") if p.is_file())
+    assert files == ["meshes/tile.ply", "scene.xml", "textures/checker.exr", "textures/ramp.exr"]
+    text = scene_file.read_text()
+    assert str(tmp_path) not in text  # relocatable
+    assert text.count('<bsdf type="twosided" id=') == 2 and text.count("meshes/tile.ply") == 3
+
+
+def test02_exported_folder_renders_like_the_in_memory_scene(variant, tmp_path):
+    description = rich_scene(tmp_path)
+    export.export_folder(description, S.RenderSettings(spp=4), tmp_path / "out")
+    moved = tmp_path / "moved"
+    (tmp_path / "out").rename(moved)  # a self-contained folder still renders after moving
+    from_files = render.render_image(export.load_folder(moved), 16, seed=3)
+    in_memory = render.render_image(builder.load_scene(description, S.RenderSettings()), 16, seed=3)
+    assert from_files.shape == (20, 30, 4)
+    assert np.allclose(from_files, in_memory, atol=1e-4)
+
+
+def test03_ply_files_round_trip_through_mitsuba(variant, tmp_path):
+    import mitsuba as mi
+
+    rng = np.random.default_rng(0)
+    positions = rng.random((50, 3)).astype(np.float32)
+    normals = rng.random((50, 3)).astype(np.float32)
+    uvs = rng.random((50, 2)).astype(np.float32)
+    faces = rng.integers(0, 50, (30, 3)).astype(np.uint32)
+    write_ply(tmp_path / "m.ply", positions, faces, normals, uvs)
+    params = mi.traverse(mi.load_dict({"type": "ply", "filename": str(tmp_path / "m.ply")}))
+    assert np.allclose(np.array(params["vertex_positions"]).reshape(-1, 3), positions)
+    assert np.allclose(np.array(params["vertex_texcoords"]).reshape(-1, 2), uvs)
+    assert np.array_equal(np.array(params["faces"]).reshape(-1, 3), faces)
+
+
+def test04_command_line_renders_an_exported_folder_to_exr(variant, tmp_path):
+    export.export_folder(rich_scene(tmp_path), S.RenderSettings(spp=4), tmp_path / "out")
+    output = tmp_path / "image.exr"
+    result = subprocess.run([sys.executable, "-m", "mitsuba_bridge", "render", str(tmp_path / "out"), "-o",
+                             str(output), "--spp", "8"], capture_output=True, text=True, cwd=ROOT)
+    assert result.returncode == 0, result.stderr
+    assert "8/8 spp" in result.stdout and output.is_file()
+    image = read_exr(output)
+    assert image.shape == (20, 30, 4) and np.isfinite(image).all() and image[..., :3].mean() > 0.01
+
+
+def test05_command_line_explains_a_missing_folder(tmp_path):
+    result = subprocess.run([sys.executable, "-m", "mitsuba_bridge", "render", str(tmp_path / "nothing"), "-o",
+                             str(tmp_path / "x.exr")], capture_output=True, text=True, cwd=ROOT)
+    assert result.returncode == 1 and "no such scene file" in result.stderr
+    assert not (tmp_path / "x.exr").exists()
+
+
+def test06_in_memory_objects_cannot_be_written_as_xml(variant):
+    import mitsuba as mi
+    from mitsuba_bridge.scenexml import dict_to_xml
+
+    with pytest.raises(TypeError, match="cannot write"):
+        dict_to_xml({"type": "scene", "a": {"type": "diffuse", "reflectance": mi.Bitmap(np.zeros((2, 2, 3)))}})
+
+
+def test07_exr_round_trips_rgb_and_rgba(tmp_path):
+    for channels in (3, 4):
+        image = np.random.default_rng(channels).random((5, 7, channels)).astype(np.float32)
+        write_exr(tmp_path / "a.exr", image)
+        assert np.array_equal(read_exr(tmp_path / "a.exr"), image)
