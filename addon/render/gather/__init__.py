@@ -72,7 +72,9 @@ def _emits(material) -> bool:
 def _gather_object(obj, matrix, scene, materials: dict, meshes: dict, warnings: Warnings) -> list[Shape]:
     original = obj.original
     scratched = has_scratches(original)
-    key = (obj.name, obj.data.as_pointer() if obj.data is not None else 0, scratched)
+    # Objects (and instances) showing the same evaluated mesh share its data; other
+    # types are converted per object.
+    key = (obj.data.as_pointer() if obj.type == "MESH" else obj.name, scratched)
     if key not in meshes:
         meshes[key] = _object_parts(obj, scratched)
     parts = meshes[key]
