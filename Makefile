@@ -13,13 +13,14 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 PYTEST := $(PY) -m pytest
 
-.PHONY: setup llvm test test-slow demo bench clean help
+.PHONY: setup llvm test test-slow demo extension bench clean help
 
 help:
 	@echo "make demo       render the bundled demo scene to out/"
 	@echo "make test       run the test suite (without the slow checks)"
 	@echo "make test-slow  run the slow checks only"
 	@echo "make bench      run the benchmarks in tests/bench"
+	@echo "make extension  build the extension zips (one per platform, wheels bundled) into dist/"
 
 setup: $(STAMP) llvm
 
@@ -51,11 +52,16 @@ test: setup
 test-slow: setup
 	$(PYTEST) -m slow
 
-# Until the render path exists: the smallest end-to-end job, a Fig. 7(b) scratch file.
+# Builds the demo plate in code, saves out/demo.blend and renders it through the
+# engine into out/demo.exr (linear) and out/demo.png (display-referred).
 demo: setup
 	@mkdir -p out
-	$(PY) -m mitsuba_bridge generate out/demo_scratches.npz --count 3000
-	$(PY) -m mitsuba_bridge info out/demo_scratches.npz
+	$(PY) tools/demo.py --output out
+
+# Downloads the wheels named in blender_manifest.toml into wheels/ (once), builds
+# one zip per platform into dist/ and validates them with Blender's own tool.
+extension: setup
+	$(PY) tools/build_extension.py
 
 bench: setup
 	@for b in tests/bench/bench_*.py; do echo "== $$b"; $(PY) $$b; done
