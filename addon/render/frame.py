@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import traceback
 
+import bpy
 import numpy as np
 
 from .gather import GatherError, gather_scene, gather_settings
@@ -88,8 +89,10 @@ def render_frame(engine, depsgraph) -> None:
             combined.rect = combined_rect(progress.image, description.film.transparent)
             engine.update_result(result)
             engine.update_progress(progress.fraction)
-            engine.update_stats("", f"Mitsuba ({variant}) | Sample {progress.spp_done}/{progress.spp_total} | "
-                                    f"{progress.seconds:.1f} s")
+            status = f"Sample {progress.spp_done}/{progress.spp_total} | {progress.seconds:.1f} s"
+            engine.update_stats("", f"Mitsuba ({variant}) | {status}")
+            if bpy.app.background:  # a console render shows its progress, as Cycles' does
+                print(f"Fra:{scene.frame_current} | Mitsuba Scratch | {status}", flush=True)
             if not progress.finished and engine.test_break():
                 cancelled = True
                 break

@@ -281,3 +281,25 @@ def test_cancelled_render_leaves_no_temporary_files(tmp_path):
     assert (tmp_path / "out.png").is_file()  # the partial image is kept
     assert "FILES []" in result.stdout  # nothing written to the temporary folder while Blender ran
     assert not any(p.is_file() for p in temporary.rglob("*"))  # and nothing left after it quit
+
+
+def test_blenders_own_panels_open_to_the_engine_except_eevee_settings(addon):
+    for name in ("RENDER_PT_format", "RENDER_PT_output", "DATA_PT_lens", "DATA_PT_camera", "DATA_PT_EEVEE_light",
+                 "EEVEE_MATERIAL_PT_surface", "EEVEE_WORLD_PT_surface", "RENDER_PT_color_management"):
+        assert "MITSUBA_SCRATCH" in getattr(bpy.types, name).COMPAT_ENGINES, name
+    for name in ("RENDER_PT_eevee_sampling", "RENDER_PT_eevee_raytracing", "DATA_PT_EEVEE_light_shadow"):
+        assert "MITSUBA_SCRATCH" not in getattr(bpy.types, name).COMPAT_ENGINES, name
+    for name in ("SCRATCH_PT_render_sampling", "SCRATCH_PT_render_film", "SCRATCH_PT_render_device"):
+        assert getattr(bpy.types, name).COMPAT_ENGINES == {"MITSUBA_SCRATCH"}
+
+
+def test_asking_for_a_missing_gpu_is_a_clear_error(lit, tmp_path):
+    import drjit
+
+    if drjit.has_backend(drjit.JitBackend.CUDA):
+        pytest.skip("this machine has a CUDA device")
+    lit.scratch_render.variant = "cuda_ad_spectral"
+    lit.render.filepath = str(tmp_path / "gpu.exr")
+    with pytest.raises(RuntimeError, match="NVIDIA GPU"):
+        bpy.ops.render.render(write_still=True)
+    assert not (tmp_path / "gpu.exr").exists()
