@@ -5,9 +5,13 @@ they are listed here in registration order (property groups first).
 """
 from __future__ import annotations
 
-from . import properties, render
+from . import properties
+from .render import engine as render_engine
+from .render import export as render_export
+from .render import panels as render_panels
+from .render import settings as render_settings
 
-_MODULES = (properties, render)
+_MODULES = (properties, render_settings, render_engine, render_panels, render_export)
 
 
 def register():

@@ -52,6 +52,8 @@ def _property(name: str, value, indent: str) -> list[str]:
         if kind == "rgb":
             rgb = np.broadcast_to(np.asarray(value["value"], dtype=float), (3,))
             return [f"{indent}<rgb name={quoteattr(name)} value=\"{', '.join(_number(c) for c in rgb)}\"/>"]
+        if kind == "spectrum" and isinstance(value.get("value"), (int, float)):
+            return [f"{indent}<spectrum name={quoteattr(name)} value=\"{_number(value['value'])}\"/>"]
         if kind == "ref":
             return [f"{indent}<ref id={quoteattr(value['id'])} name={quoteattr(name)}/>"]
         return _plugin(value, indent, name=name)

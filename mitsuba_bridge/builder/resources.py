@@ -111,7 +111,8 @@ class InMemory:
     def scratch_bsdf(self, material: ScratchedMetal, *, key: str) -> dict:
         from ..bsdf import plugin_dict
 
-        return plugin_dict(material.scratches, **_scratch_settings(material))
+        scratches = material.scratches if material.scratches.count else None  # None: unscratched metal
+        return plugin_dict(scratches, **_scratch_settings(material))
 
     def shape(self, shape: Shape, bsdf: dict, emitter: dict | None, *, material_key: str):
         """An ``mi.Mesh`` in world space, filled from numpy, with its BSDF (shared per material)."""
@@ -180,6 +181,8 @@ class ToFolder:
     def scratch_bsdf(self, material: ScratchedMetal, *, key: str) -> dict:
         from ..bsdf import plugin_dict
 
+        if not material.scratches.count:
+            return plugin_dict(**_scratch_settings(material))
         relative = self._unique("scratches", key, ".npz")
         scratch_io.save(material.scratches, self.folder / relative)
         return plugin_dict(filename=relative, **_scratch_settings(material))
@@ -204,5 +207,5 @@ def _scratch_settings(material: ScratchedMetal) -> dict:
     settings = dict(coherence_diameter=material.coherence_diameter_m, unit_scale=material.unit_scale,
                     material=material.material, coherent=material.coherent)
     if material.diffuse_reflectance is not None and any(c > 0 for c in material.diffuse_reflectance):
-        settings["diffuse_reflectance"] = tuple(float(c) for c in material.diffuse_reflectance)
+        settings["diffuse_reflectance"] = {"type": "rgb", "value": [float(c) for c in material.diffuse_reflectance]}
     return settings
