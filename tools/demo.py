@@ -5,7 +5,7 @@ Builds the scene in code with bpy: a 10 cm plate carrying 3 000 random scratches
 dark table, Blender's sky with its sun, and a camera looking at the plate close to
 the sun's mirror direction, where the scratches light up in diffraction colours.
 Saves ``demo.blend``, renders it with MITSUBA_SCRATCH (``bpy.ops.render.render``)
-and writes ``demo.exr`` (linear) and ``demo.png`` (display-referred, AgX).
+and writes ``demo.exr`` (linear) and ``demo.png`` (display-referred: Standard view, exposure −6.5).
 
     .venv/bin/python tools/demo.py --output out             # what `make demo` runs
     .venv/bin/python tools/demo.py --output /tmp/d --resolution 64 40 --samples 4   # a quick look
@@ -23,7 +23,7 @@ SUN_ELEVATION_DEG = 35.0
 SUN_ROTATION_DEG = 0.0  # the sun stands towards +Y
 
 
-def build_scene(scene, *, scratch_count: int = 3000, seed: int = 7, resolution=(640, 400), samples: int = 64):
+def build_scene(scene, *, scratch_count: int = 3000, seed: int = 7, resolution=(720, 450), samples: int = 128):
     """Fill ``scene`` (expected empty) with the demo plate, table, sky and camera."""
     import bpy
     from mathutils import Vector
@@ -66,12 +66,15 @@ def build_scene(scene, *, scratch_count: int = 3000, seed: int = 7, resolution=(
     sky.sun_elevation, sky.sun_rotation = math.radians(SUN_ELEVATION_DEG), math.radians(SUN_ROTATION_DEG)
     world.node_tree.links.new(sky.outputs["Color"], world.node_tree.nodes["Background"].inputs["Color"])
 
-    # ---- camera: near the sun's mirror direction (the plate's highlight lies just off the frame) ----
+    # ---- camera: 12° above the sun's mirror direction ----
+    # Scratches perpendicular to the half vector light up: around the sun's highlight (here just
+    # beyond the plate's far edge) they form arcs, split into colours by diffraction a few degrees
+    # away from it.
     camera_data = bpy.data.cameras.new("Camera")
     camera_data.lens = 50
     camera = bpy.data.objects.new("Camera", camera_data)
     scene.collection.objects.link(camera)
-    elevation = math.radians(SUN_ELEVATION_DEG + 6.0)
+    elevation = math.radians(SUN_ELEVATION_DEG + 12.0)
     distance = 0.24
     camera.location = Vector((0.0, -math.cos(elevation) * distance, math.sin(elevation) * distance))
     target = Vector((0.0, 0.012, 0.0))
@@ -85,16 +88,18 @@ def build_scene(scene, *, scratch_count: int = 3000, seed: int = 7, resolution=(
     render.resolution_percentage = 100
     scene.scratch_render.samples = samples
     scene.scratch_render.film_filter = "box"
-    scene.view_settings.view_transform = "AgX"
-    scene.view_settings.exposure = -3.0
+    # Sun glints are ~1000 times brighter than the sky in the mirror: expose for the glints, and
+    # keep their colours (AgX would desaturate them towards white).
+    scene.view_settings.view_transform = "Standard"
+    scene.view_settings.exposure = -6.5
     return plate
 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--output", default="out", help="folder for demo.blend, demo.exr and demo.png")
-    parser.add_argument("--resolution", type=int, nargs=2, default=(640, 400), metavar=("W", "H"))
-    parser.add_argument("--samples", type=int, default=64)
+    parser.add_argument("--resolution", type=int, nargs=2, default=(720, 450), metavar=("W", "H"))
+    parser.add_argument("--samples", type=int, default=128)
     parser.add_argument("--scratches", type=int, default=3000)
     args = parser.parse_args(argv)
 

@@ -7,6 +7,9 @@ engine too (EEVEE's own sampling, ray tracing, light probe... panels are not).
 """
 from __future__ import annotations
 
+import importlib.metadata
+import importlib.util
+
 import bpy
 
 from .engine import ENGINE_ID
@@ -72,12 +75,21 @@ class SCRATCH_PT_render_device(_RenderPanel, bpy.types.Panel):
         layout = self.layout
         layout.use_property_split = True
         layout.prop(context.scene.scratch_render, "variant")
-        try:
-            import mitsuba
-        except ImportError:
+        version = mitsuba_version()
+        if version is None:
             layout.label(text="Mitsuba is not installed: reinstall the extension for your platform", icon="ERROR")
         else:
-            layout.label(text=f"Mitsuba {mitsuba.__version__}", icon="INFO")
+            layout.label(text=f"Mitsuba {version}", icon="INFO")
+
+
+def mitsuba_version():
+    """The installed Mitsuba's version, found without importing it (a first import takes a moment)."""
+    if importlib.util.find_spec("mitsuba") is None:
+        return None
+    try:
+        return importlib.metadata.version("mitsuba")
+    except importlib.metadata.PackageNotFoundError:
+        return "(version unknown)"
 
 
 _CLASSES = (SCRATCH_PT_render_sampling, SCRATCH_PT_render_film, SCRATCH_PT_render_device)
