@@ -41,6 +41,7 @@ def floor_radiance(engine, build, tmp_path, camera_x=0.0):
 
 LIGHTS = {
     "point": lambda s: add_light(s, "POINT", energy=100, shadow_soft_size=0),
+    "point_radius": lambda s: add_light(s, "POINT", energy=100, shadow_soft_size=0.25),  # an emitting sphere
     "point_exposure_colour": lambda s: add_light(s, "POINT", energy=20, exposure=1.5, color=(1, 0.6, 0.3),
                                                  shadow_soft_size=0),
     "spot": lambda s: add_light(s, "SPOT", energy=100, spot_size=math.radians(60), spot_blend=0.2,
