@@ -86,7 +86,8 @@ def render_frame(engine, depsgraph) -> None:
         combined = result.layers[0].passes["Combined"]
         for progress in passes.render_passes(mi_scene, settings.spp, seed=settings.seed,
                                              pass_seconds=PASS_SECONDS):
-            combined.rect = combined_rect(progress.image, description.film.transparent)
+            # foreach_set copies in bulk: assigning ``rect`` goes pixel by pixel (about 1 s for 1080p).
+            combined.rect.foreach_set(combined_rect(progress.image, description.film.transparent).ravel())
             engine.update_result(result)
             engine.update_progress(progress.fraction)
             status = f"Sample {progress.spp_done}/{progress.spp_total} | {progress.seconds:.1f} s"
