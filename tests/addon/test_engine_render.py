@@ -303,3 +303,19 @@ def test_asking_for_a_missing_gpu_is_a_clear_error(lit, tmp_path):
     with pytest.raises(RuntimeError, match="NVIDIA GPU"):
         bpy.ops.render.render(write_still=True)
     assert not (tmp_path / "gpu.exr").exists()
+
+
+def test_missing_texture_renders_magenta_with_a_warning(recording, empty_scene, tmp_path):
+    setup_render(empty_scene, engine=RecordingEngine.bl_idname, samples=8)
+    add_camera(empty_scene)
+    mat = material("Lost")
+    node = mat.node_tree.nodes.new("ShaderNodeTexImage")
+    node.image = bpy.data.images.new("gone", 2, 2)
+    node.image.source = "FILE"
+    node.image.filepath = str(tmp_path / "gone.png")
+    mat.node_tree.links.new(node.outputs["Color"], mat.node_tree.nodes["Diffuse BSDF"].inputs["Color"])
+    add_plane(empty_scene, size=6, mat=mat)
+    set_world(empty_scene, (1, 1, 1))
+    red, green, blue = render_to(empty_scene, tmp_path / "lost.exr")[..., :3].mean(axis=(0, 1))
+    assert red > 0.5 and blue > 0.5 and green < 0.1 * red
+    assert any("missing" in message and "gone" in message for _, message in recording.reports)
