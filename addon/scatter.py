@@ -193,8 +193,9 @@ def _trace_centred(surface, triangle, bary, direction, length, turn_angle, turn_
     order = np.where(backward, -trace.order[keep], trace.order[keep])
     # Walking backward, the record *after* a seam (in path order) is the one before it in scratch order.
     breaks = np.where(backward, kind == SEAM_OUT, kind == SEAM_IN)
-    return assemble(group, order, trace.uv[keep], trace.point[keep], breaks,
-                    min_length=1e-9 * max(float(length.max(initial=0.0)), 1e-300))
+    tiny = 1e-9 * max(float(length.max(initial=0.0)), 1e-300)
+    return assemble(group, order, trace.uv[keep], trace.point[keep], breaks, min_length=tiny,
+                    merge_distance=tiny)
 
 
 def _build_set(pieces: Pieces, source: np.ndarray, params: dict) -> ScratchSet:
@@ -225,65 +226,99 @@ def pen_scratches(surface: Surface, runs, params: dict) -> Placed:
     """One scratch following a stroke: ``runs`` is a list of (triangle, bary) hit sequences.
 
     Consecutive hits of a run are joined by paths traced on the surface (so the
-    scratch follows the surface between them); runs are separate (the stroke
-    left the surface in between).  The scratch is cut at UV seams.  ``params``
-    holds arrays of length 1 (the stroke's single scratch, as ``Looks.sample(rng, 1)``).
+    scratch follows the surface between them, over folds too); runs are
+    separate (the stroke left the surface in between).  The scratch is cut at
+    UV seams.  ``params`` holds arrays of length 1 (the stroke's single
+    scratch, as ``Looks.sample(rng, 1)``).
     """
-    starts_t, starts_b, targets, group, segment = [], [], [], [], []
+    starts_t, starts_b, group, segment = [], [], [], []
     for run_index, (triangle, bary) in enumerate(runs):
         triangle = np.asarray(triangle, dtype=np.int64)
-        bary = np.asarray(bary, dtype=np.float64)
         if len(triangle) < 2:
             continue
-        points = surface.point(triangle, bary)
-        starts_t.append(triangle[:-1])
-        starts_b.append(bary[:-1])
-        targets.append((points[:-1], points[1:]))
+        starts_t.append(triangle)
+        starts_b.append(np.asarray(bary, dtype=np.float64))
         group.append(np.full(len(triangle) - 1, run_index))
         segment.append(np.arange(len(triangle) - 1))
     if not starts_t:
         return _empty_placed()
-    triangle = np.concatenate(starts_t)
-    bary = np.concatenate(starts_b)
-    start_point = np.concatenate([a for a, _ in targets])
-    end_point = np.concatenate([b for _, b in targets])
+    hit_t = np.concatenate([t[:-1] for t in starts_t])
+    hit_b = np.concatenate([b[:-1] for b in starts_b])
+    target = np.concatenate([surface.point(t[1:], b[1:]) for t, b in zip(starts_t, starts_b)])
     group = np.concatenate(group)
     segment = np.concatenate(segment)
-    chord = end_point - start_point
-    length = np.linalg.norm(chord, axis=1)
+    records, last_end, arrived = _trace_to_targets(surface, hit_t, hit_b, target)
 
-    trace = trace_paths(surface, triangle, bary, chord, length)
-    path = trace.path
-    n_segments = len(triangle)
-    # Last segment of each run: keep its end; otherwise the next segment's start replaces it.
+    path, order, kind, triangle, uv, point = records
+    n_segments = len(hit_t)
+    # A segment's end joins the next segment's start (the next hit) when it arrived
+    # there and lies in the same UV island; then the next start replaces it.
     last_of_run = np.r_[group[1:] != group[:-1], True]
-    # A segment's end joins the next start only in the same island and close to it.
-    end_rec = np.flatnonzero(np.isin(trace.kind, (END, BOUNDARY)))
-    end_of = np.full(n_segments, -1)
-    end_of[path[end_rec]] = end_rec
-    next_start_triangle = np.r_[triangle[1:], -1]
-    next_start_point = np.r_[start_point[1:], np.zeros((1, 3))]
-    end_triangle = trace.triangle[end_of]
-    gap = np.linalg.norm(trace.point[end_of] - next_start_point, axis=1)
-    joins = (~last_of_run
-             & (trace.kind[end_of] == END)
-             & (surface.island[end_triangle] == surface.island[np.maximum(next_start_triangle, 0)])
-             & (gap <= 0.25 * length + 1e-9 * surface.size))
-
+    end_triangle = triangle[last_end]
+    next_triangle = np.r_[hit_t[1:], 0]
+    joins = (~last_of_run & arrived
+             & (surface.island[end_triangle] == surface.island[next_triangle]))
     drop = np.zeros(len(path), dtype=bool)
-    drop[end_of[joins]] = True
-    breaks = trace.kind == SEAM_IN
-    # A start that does not join its predecessor begins a new piece.
-    begins = (trace.kind == START) & (segment[path] > 0) & ~np.r_[False, joins[:-1]][path]
-    breaks |= begins
+    drop[last_end[joins]] = True
+    breaks = kind == SEAM_IN
+    # A start that does not continue its predecessor begins a new piece.
+    breaks |= (kind == START) & (segment[path] > 0) & ~np.r_[False, joins[:-1]][path]
     keep = ~drop
-    span = int(trace.order.max()) + 2
-    pieces = assemble(group[path][keep], (segment[path] * span + trace.order)[keep], trace.uv[keep],
-                      trace.point[keep], breaks[keep], min_length=1e-9 * max(surface.size, 1e-300))
+    span = int(order.max()) + 2
+    tiny = 1e-9 * max(surface.size, 1e-300)
+    pieces = assemble(group[path][keep], (segment[path] * span + order)[keep], uv[keep], point[keep],
+                      breaks[keep], min_length=tiny, merge_distance=tiny)
     source = np.zeros(pieces.count, dtype=np.int64)
     scratches = _build_set(pieces, source, params)
     return Placed(scratches=scratches, source=source, point=pieces.point, piece_length=pieces.length,
                   requested=1)
+
+
+#: Re-aimed traces per pen segment (a fold or a curved surface needs more than one).
+_PEN_STEPS = 6
+
+
+def _trace_to_targets(surface: Surface, triangle, bary, target):
+    """Trace from each start towards its target point, re-aiming until it arrives.
+
+    Returns (records, last_end, arrived): the records (path = start index,
+    order, kind, triangle, uv, point), the index of each path's final end
+    record, and whether the path reached its target.
+    """
+    n = len(triangle)
+    triangle, bary = triangle.copy(), bary.copy()
+    tolerance = 1e-7 * max(surface.size, 1e-300)
+    active = np.arange(n)
+    parts = []
+    span = 0
+    blocked = np.zeros(n, dtype=bool)
+    for step in range(_PEN_STEPS):
+        gap = target[active] - surface.point(triangle[active], bary[active])
+        distance = np.linalg.norm(gap, axis=1)
+        if step:
+            moving = distance > tolerance
+            active, gap, distance = active[moving], gap[moving], distance[moving]
+        if not active.size:
+            break
+        trace = trace_paths(surface, triangle[active], bary[active], gap, distance)
+        keep = (trace.kind != START) | (step == 0)  # later starts repeat the previous end
+        parts.append((active[trace.path[keep]], trace.order[keep] + span, trace.kind[keep],
+                      trace.triangle[keep], trace.uv[keep], trace.point[keep]))
+        span += int(trace.order.max()) + 2
+        triangle[active], bary[active] = trace.end_triangle, trace.end_bary
+        stopped = np.zeros(len(active), dtype=bool)
+        stopped[trace.path[trace.kind == BOUNDARY]] = True
+        blocked[active[stopped]] = True
+        active = active[~stopped]
+    records = tuple(np.concatenate(column) for column in zip(*parts))
+    path, order, kind = records[0], records[1], records[2]
+    ends = np.flatnonzero(np.isin(kind, (END, BOUNDARY)))
+    last_end = np.full(n, -1)
+    by_order = ends[np.argsort(order[ends], kind="stable")]
+    last_end[path[by_order]] = by_order  # the latest end of each path wins
+    final_gap = np.linalg.norm(target - surface.point(triangle, bary), axis=1)
+    arrived = ~blocked & (final_gap <= tolerance * 10)
+    return records, last_end, arrived
 
 
 def _empty_placed() -> Placed:

@@ -141,7 +141,7 @@ class Surface:
             matrix = np.asarray(matrix, dtype=np.float64)
             positions = positions @ matrix[:3, :3].T + matrix[:3, 3]
         if weld:
-            _, inverse = np.unique(positions, axis=0, return_inverse=True)
+            positions, inverse = np.unique(positions, axis=0, return_inverse=True)
             triangles = inverse.reshape(-1)[triangles]
 
         corners = positions[triangles]

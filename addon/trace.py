@@ -253,13 +253,15 @@ class Pieces:
         return len(self.offsets) - 1
 
 
-def assemble(group, order, uv, point, breaks, *, min_length: float = 0.0) -> Pieces:
+def assemble(group, order, uv, point, breaks, *, min_length: float = 0.0,
+             merge_distance: float = 0.0) -> Pieces:
     """Cut ordered records into polylines.
 
     Records are sorted by ``(group, order)``; a new piece starts at every new
-    group and at every record with ``breaks`` set.  Consecutive duplicate
-    vertices are merged; pieces with fewer than two vertices or a 3D length of
-    at most ``min_length`` are dropped.
+    group and at every record with ``breaks`` set.  A vertex equal to its
+    predecessor in the piece (same UV, or within ``merge_distance`` in 3D: a
+    turn that rounding put a hair before the end) is dropped; pieces with fewer
+    than two vertices or a 3D length of at most ``min_length`` are dropped.
     """
     group = np.asarray(group, dtype=np.int64)
     if len(group) == 0:
@@ -278,7 +280,10 @@ def assemble(group, order, uv, point, breaks, *, min_length: float = 0.0) -> Pie
     new[1:] = (group[1:] != group[:-1]) | breaks[1:]
     # Drop a vertex equal to its predecessor in the same piece.
     duplicate = np.zeros(len(group), dtype=bool)
-    duplicate[1:] = ~new[1:] & np.all(uv[1:] == uv[:-1], axis=1)
+    close = np.all(uv[1:] == uv[:-1], axis=1)
+    if merge_distance > 0:
+        close |= np.einsum("ni,ni->n", point[1:] - point[:-1], point[1:] - point[:-1]) <= merge_distance ** 2
+    duplicate[1:] = ~new[1:] & close
     keep = ~duplicate
     group, uv, point, new = group[keep], uv[keep], point[keep], new[keep]
 
