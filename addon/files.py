@@ -83,7 +83,8 @@ class SCRATCH_OT_import_file(_ObjectModeOperator, bpy.types.Operator, ImportHelp
             return fail(self, error)
         self.report({"INFO"}, f"{obj.name}: imported {plural(loaded.count)} from {path.name}")
         if outside:
-            self.report({"WARNING"}, f"{plural(outside)} of {path.name} lie outside the UV islands of "
+            verb = "lies" if outside == 1 else "lie"
+            self.report({"WARNING"}, f"{plural(outside)} of {path.name} {verb} outside the UV islands of "
                                      f"{obj.name} and will not show")
         return {"FINISHED"}
 

@@ -20,6 +20,7 @@ _MAX_CELLS_PER_AXIS = 2048
 _MAX_CELL_ENTRIES = 8_000_000
 # Tolerance on barycentric coordinates: points on a shared edge belong to either side.
 _INSIDE_TOLERANCE = 1e-7
+_BOX_MARGIN = 1e-7
 
 
 class UVLocator:
@@ -59,8 +60,13 @@ class UVLocator:
             return
         low = uv[index].min(axis=1)
         high = uv[index].max(axis=1)
+        extent = np.maximum(high.max(axis=0) - low.min(axis=0), 1e-12)
+        # Grow the boxes a little: a point a rounding error outside its triangle
+        # (on an island's border) must still find it among its cell's candidates.
+        low = low - _BOX_MARGIN * extent
+        high = high + _BOX_MARGIN * extent
         self._low = low.min(axis=0)
-        extent = np.maximum(high.max(axis=0) - self._low, 1e-12)
+        extent = high.max(axis=0) - self._low
         # Cells about the size of a typical triangle, within limits.
         typical = np.maximum(np.median(high - low, axis=0), extent / _MAX_CELLS_PER_AXIS)
         shape = np.clip(np.ceil(extent / typical), 1, _MAX_CELLS_PER_AXIS).astype(np.int64)
