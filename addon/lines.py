@@ -56,6 +56,17 @@ class Lines:
     def __len__(self) -> int:
         return len(self.scratch)
 
+    def without(self, removed) -> "Lines":
+        """The lines of the scratches left after removing those where ``removed`` (S,) is True.
+
+        Scratch indices are renumbered as ``ScratchSet.select(~removed)`` numbers them.
+        """
+        removed = np.asarray(removed, dtype=bool)
+        keep = ~removed[self.scratch]
+        renumber = np.cumsum(~removed) - 1
+        return Lines(a=self.a[keep], b=self.b[keep], scratch=renumber[self.scratch[keep]],
+                     width=self.width[keep], depth=self.depth[keep], unplaced=self.unplaced)
+
 
 def scratch_lines(scratches: ScratchSet, locator: UVLocator, corners, normals=None, *,
                   offset: float = 0.0, max_uv_length: float | None = None) -> Lines:

@@ -19,7 +19,7 @@ from bpy.app.handlers import persistent
 from .surface import Surface, SurfaceError
 
 __all__ = ["MeshError", "MeshArrays", "scratch_uv_layer", "mesh_arrays", "world_surface", "Picker",
-           "geometry_generation", "cached", "peek", "clear_caches", "check_object", "register", "unregister"]
+           "picker_for", "matrix_key", "geometry_generation", "cached", "peek", "clear_caches", "check_object", "register", "unregister"]
 
 
 class MeshError(ValueError):
@@ -155,6 +155,16 @@ class Picker:
             location[hit] = self.surface.point(triangle[hit], bary[hit])
         triangle = np.where(hit, triangle, -1)
         return triangle, bary, location, hit
+
+
+def picker_for(obj, depsgraph) -> Picker:
+    """The (cached) :class:`Picker` of ``obj``'s world-space surface."""
+    check_object(obj)
+    return cached("picker", obj, matrix_key(obj), lambda: Picker(world_surface(obj, depsgraph)))
+
+
+def matrix_key(obj) -> tuple:
+    return tuple(value for row in obj.matrix_world for value in row)
 
 
 # --------------------------------------------------------------------- caches

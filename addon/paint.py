@@ -14,7 +14,7 @@ from . import storage
 from .editing import USER_ERRORS, combine, fail, plural, unit_scale, write
 from .erase import touched_scratches
 from .lines import scratch_lines
-from .mesh import MeshError, Picker, cached, check_object, world_surface
+from .mesh import MeshError, cached, matrix_key, picker_for
 from .scatter import pen_scratches, scratches_from_centres, spray_centres
 from .settings import (LengthProperties, LooksProperties, StrokeProperties, draw_lengths, draw_looks,
                        seed_property)
@@ -27,9 +27,8 @@ __all__ = ["SCRATCH_OT_paint_stroke", "SCRATCH_OT_erase_stroke", "SCRATCH_TOOL_b
 def _stroke_on_surface(operator, context):
     """(object, surface, picker, runs) for a replayed stroke; raises errors for the user."""
     obj = context.active_object
-    check_object(obj)
-    surface = world_surface(obj, context.evaluated_depsgraph_get())
-    picker = Picker(surface)
+    picker = picker_for(obj, context.evaluated_depsgraph_get())
+    surface = picker.surface
     locations, starts = operator.stroke_arrays()
     if len(locations) == 0:
         raise ValueError("The stroke is empty")
@@ -129,7 +128,7 @@ class SCRATCH_OT_erase_stroke(StrokeOperator, StrokeProperties, bpy.types.Operat
             if scratches.count == 0:
                 self.report({"INFO"}, f"{obj.name} has no scratches to erase")
                 return {"CANCELLED"}
-            lines = cached("erase_lines", obj, (storage.scratch_token(obj), _matrix_key(obj)),
+            lines = cached("erase_lines", obj, (storage.scratch_token(obj), matrix_key(obj)),
                            lambda: scratch_lines(scratches, UVLocator(surface.uv, surface.usable),
                                                  surface.corners))
             touched = touched_scratches(lines.a, lines.b, lines.scratch, [p for _, _, p in runs],
@@ -138,6 +137,9 @@ class SCRATCH_OT_erase_stroke(StrokeOperator, StrokeProperties, bpy.types.Operat
                 self.report({"INFO"}, "No scratch under the stroke")
                 return {"CANCELLED"}
             write(obj, scratches.select(~touched))
+            # The next stroke starts from these lines instead of mapping every scratch again.
+            cached("erase_lines", obj, (storage.scratch_token(obj), matrix_key(obj)),
+                   lambda: lines.without(touched))
         except USER_ERRORS as error:
             return fail(self, error)
         self.report({"INFO"}, f"{obj.name}: erased {plural(int(touched.sum()))}; "
@@ -147,10 +149,6 @@ class SCRATCH_OT_erase_stroke(StrokeOperator, StrokeProperties, bpy.types.Operat
     def draw(self, context):
         self.layout.use_property_split = True
         self.layout.prop(self, "radius")
-
-
-def _matrix_key(obj):
-    return tuple(round(value, 12) for row in obj.matrix_world for value in row)
 
 
 # --------------------------------------------------------------------- tools
@@ -171,8 +169,7 @@ def _draw_brush_cursor(context, xy, radius, colour):
     outline = None
     if obj is not None and obj.type == "MESH" and view is not None and radius is not None:
         try:
-            picker = cached("picker", obj, _matrix_key(obj),
-                            lambda: Picker(world_surface(obj, context.evaluated_depsgraph_get())))
+            picker = picker_for(obj, context.evaluated_depsgraph_get())
         except USER_ERRORS:
             picker = None
         if picker is not None:

@@ -21,7 +21,7 @@ import bpy
 import numpy as np
 
 from .editing import USER_ERRORS, fail
-from .mesh import Picker, check_object, world_surface
+from .mesh import Picker, check_object, picker_for
 
 __all__ = ["StrokeOperator", "StrokeDrawer", "stroke_runs", "NAVIGATION_EVENTS"]
 
@@ -131,7 +131,7 @@ class StrokeOperator:
         obj = context.active_object
         try:
             check_object(obj)
-            self._picker = Picker(world_surface(obj, context.evaluated_depsgraph_get()))
+            self._picker = picker_for(obj, context.evaluated_depsgraph_get())
         except USER_ERRORS as error:
             return fail(self, error)
         if context.area is None or context.area.type != "VIEW_3D" or context.region_data is None:

@@ -132,3 +132,15 @@ def _distance_to_polyline(point, path):
     ab = b - a
     t = np.clip(np.einsum("ni,ni->n", point - a, ab) / np.maximum(np.einsum("ni,ni->n", ab, ab), 1e-300), 0, 1)
     return np.linalg.norm(a + t[:, None] * ab - point, axis=1).min()
+
+
+def test09_removing_scratches_keeps_the_other_lines(ring_scratches):
+    surface, placed = ring_scratches
+    locator = UVLocator(surface.uv)
+    lines = scratch_lines(placed.scratches, locator, surface.corners)
+    removed = np.random.default_rng(4).uniform(size=placed.scratches.count) < 0.3
+    direct = scratch_lines(placed.scratches.select(~removed), locator, surface.corners)
+    filtered = lines.without(removed)
+    np.testing.assert_array_equal(filtered.scratch, direct.scratch)
+    for name in ("a", "b", "width", "depth"):  # equal up to the rounding of the noise's arc parameter
+        np.testing.assert_allclose(getattr(filtered, name), getattr(direct, name), rtol=1e-9, atol=0)
