@@ -12,10 +12,21 @@ from .mesh import MeshError
 from .surface import SurfaceError
 from .units import MemoryLimitError
 
-__all__ = ["USER_ERRORS", "combine", "write", "unit_scale", "plural", "fail"]
+__all__ = ["USER_ERRORS", "ObjectModeOperator", "combine", "write", "unit_scale", "plural", "fail"]
 
 #: Exceptions whose message is a useful report for the user.
 USER_ERRORS = (MeshError, SurfaceError, ScratchFormatError, MemoryLimitError, ValueError, OSError)
+
+
+class ObjectModeOperator:
+    """Mixin: scratch edits run in Object Mode (the evaluated mesh is then up to date)."""
+
+    @classmethod
+    def poll(cls, context):
+        if context.mode != "OBJECT":
+            cls.poll_message_set("Scratches are edited in Object Mode")
+            return False
+        return True
 
 
 def combine(obj, new: ScratchSet, mode: str) -> ScratchSet:

@@ -16,7 +16,7 @@ from bpy_extras.io_utils import ExportHelper, ImportHelper
 from ..mitsuba_bridge import scratch
 from ..mitsuba_bridge.scratch import ScratchSet
 from . import storage
-from .editing import USER_ERRORS, combine, fail, plural, write
+from .editing import USER_ERRORS, ObjectModeOperator, combine, fail, plural, write
 from .mesh import MeshError, check_object, mesh_arrays
 from .settings import mode_property
 from .uvmap import UVLocator
@@ -24,16 +24,7 @@ from .uvmap import UVLocator
 __all__ = ["SCRATCH_OT_clear", "SCRATCH_OT_import_file", "SCRATCH_OT_export_file"]
 
 
-class _ObjectModeOperator:
-    @classmethod
-    def poll(cls, context):
-        if context.mode != "OBJECT":
-            cls.poll_message_set("Scratches are edited in Object Mode")
-            return False
-        return True
-
-
-class SCRATCH_OT_clear(_ObjectModeOperator, bpy.types.Operator):
+class SCRATCH_OT_clear(ObjectModeOperator, bpy.types.Operator):
     """Remove every scratch of the active object"""
 
     bl_idname = "scratch.clear"
@@ -55,7 +46,7 @@ class SCRATCH_OT_clear(_ObjectModeOperator, bpy.types.Operator):
         return {"FINISHED"}
 
 
-class SCRATCH_OT_import_file(_ObjectModeOperator, bpy.types.Operator, ImportHelper):
+class SCRATCH_OT_import_file(ObjectModeOperator, bpy.types.Operator, ImportHelper):
     """Load scratches from a scratch file (format v1, .npz) onto the active mesh"""
 
     bl_idname = "scratch.import_file"
@@ -102,7 +93,7 @@ def _outside_uv(obj, context, scratches: ScratchSet) -> int:
     return int(len(set(scratches.scratch_index_of_vertices()[missing].tolist()))) if missing.any() else 0
 
 
-class SCRATCH_OT_export_file(_ObjectModeOperator, bpy.types.Operator, ExportHelper):
+class SCRATCH_OT_export_file(ObjectModeOperator, bpy.types.Operator, ExportHelper):
     """Write the active object's scratches to a scratch file (format v1, .npz)"""
 
     bl_idname = "scratch.export_file"
@@ -132,14 +123,5 @@ class SCRATCH_OT_export_file(_ObjectModeOperator, bpy.types.Operator, ExportHelp
         return {"FINISHED"}
 
 
-_CLASSES = (SCRATCH_OT_clear, SCRATCH_OT_import_file, SCRATCH_OT_export_file)
-
-
-def register():
-    for cls in _CLASSES:
-        bpy.utils.register_class(cls)
-
-
-def unregister():
-    for cls in reversed(_CLASSES):
-        bpy.utils.unregister_class(cls)
+register, unregister = bpy.utils.register_classes_factory(
+    (SCRATCH_OT_clear, SCRATCH_OT_import_file, SCRATCH_OT_export_file))

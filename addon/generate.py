@@ -6,7 +6,7 @@ import numpy as np
 from bpy.props import EnumProperty, FloatProperty, IntProperty
 
 from . import storage
-from .editing import USER_ERRORS, combine, fail, plural, unit_scale, write
+from .editing import USER_ERRORS, ObjectModeOperator, combine, fail, plural, unit_scale, write
 from .mesh import check_object, world_surface
 from .scatter import ScatterSpec, estimate_bytes, expected_vertices, scatter
 from .settings import LengthProperties, LooksProperties, draw_lengths, draw_looks, mode_property, seed_property
@@ -15,7 +15,7 @@ from .units import check_memory
 __all__ = ["SCRATCH_OT_generate"]
 
 
-class SCRATCH_OT_generate(LooksProperties, LengthProperties, bpy.types.Operator):
+class SCRATCH_OT_generate(ObjectModeOperator, LooksProperties, LengthProperties, bpy.types.Operator):
     """Scatter scratches uniformly over the surface of the active mesh (per area, inside UV islands, cut at seams)"""
 
     bl_idname = "scratch.generate"
@@ -37,13 +37,6 @@ class SCRATCH_OT_generate(LooksProperties, LengthProperties, bpy.types.Operator)
                                      "of the object's tangent space (UV map)")
     angle_spread: FloatProperty(name="Spread", subtype="ANGLE", default=np.radians(10.0), min=0.0,
                                 max=np.pi, description="Directions vary uniformly within ± this angle")
-
-    @classmethod
-    def poll(cls, context):
-        if context.mode != "OBJECT":
-            cls.poll_message_set("Scratches are edited in Object Mode")
-            return False
-        return True
 
     def invoke(self, context, event):
         return context.window_manager.invoke_props_dialog(self, width=360)
@@ -97,14 +90,4 @@ class SCRATCH_OT_generate(LooksProperties, LengthProperties, bpy.types.Operator)
         draw_looks(layout.column(), self)
 
 
-_CLASSES = (SCRATCH_OT_generate,)
-
-
-def register():
-    for cls in _CLASSES:
-        bpy.utils.register_class(cls)
-
-
-def unregister():
-    for cls in reversed(_CLASSES):
-        bpy.utils.unregister_class(cls)
+register, unregister = bpy.utils.register_classes_factory((SCRATCH_OT_generate,))

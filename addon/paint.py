@@ -196,21 +196,30 @@ def _draw_brush_cursor(context, xy, radius, colour):
     gpu.state.blend_set("NONE")
 
 
-class SCRATCH_TOOL_brush(bpy.types.WorkSpaceTool):
+class _ScratchTool(bpy.types.WorkSpaceTool):
+    """A brush of the 3D viewport's toolbar in Object Mode; ``operator`` runs on a left-drag."""
+
     bl_space_type = "VIEW_3D"
     bl_context_mode = "OBJECT"
+    bl_widget = None
+
+
+def _left_drag(operator: str):
+    return ((operator, {"type": "LEFTMOUSE", "value": "PRESS"}, None),)
+
+
+class SCRATCH_TOOL_brush(_ScratchTool):
     bl_idname = "scratch_iridescence.brush"
     bl_label = "Scratch Brush"
     bl_description = ("Paint microscopic scratches on the active mesh: drag to paint; "
                       "Pen draws one scratch along the stroke, Spray scatters many around it")
     bl_icon = "ops.gpencil.draw"
-    bl_widget = None
-    bl_keymap = (
-        ("scratch.paint_stroke", {"type": "LEFTMOUSE", "value": "PRESS"}, None),
-    )
+    operator = SCRATCH_OT_paint_stroke.bl_idname
+    bl_keymap = _left_drag(operator)
+    colour = (1.0, 0.6, 0.1, 0.9)
 
     def draw_settings(context, layout, tool):
-        props = tool.operator_properties(SCRATCH_OT_paint_stroke.bl_idname)
+        props = tool.operator_properties(SCRATCH_TOOL_brush.operator)
         layout.prop(props, "brush_mode", expand=True)
         row = layout.row(align=True)
         row.active = props.brush_mode == "SPRAY"
@@ -219,30 +228,26 @@ class SCRATCH_TOOL_brush(bpy.types.WorkSpaceTool):
         layout.popover("SCRATCH_PT_brush_scratches")
 
     def draw_cursor(context, tool, xy):
-        props = tool.operator_properties(SCRATCH_OT_paint_stroke.bl_idname)
+        props = tool.operator_properties(SCRATCH_TOOL_brush.operator)
         radius = props.radius if props.brush_mode == "SPRAY" else None
-        _draw_brush_cursor(context, xy, radius, (1.0, 0.6, 0.1, 0.9))
+        _draw_brush_cursor(context, xy, radius, SCRATCH_TOOL_brush.colour)
 
 
-class SCRATCH_TOOL_eraser(bpy.types.WorkSpaceTool):
-    bl_space_type = "VIEW_3D"
-    bl_context_mode = "OBJECT"
+class SCRATCH_TOOL_eraser(_ScratchTool):
     bl_idname = "scratch_iridescence.eraser"
     bl_label = "Scratch Eraser"
     bl_description = "Erase the scratches under the stroke (within the brush radius)"
     bl_icon = "ops.gpencil.draw.eraser"
-    bl_widget = None
-    bl_keymap = (
-        ("scratch.erase_stroke", {"type": "LEFTMOUSE", "value": "PRESS"}, None),
-    )
+    operator = SCRATCH_OT_erase_stroke.bl_idname
+    bl_keymap = _left_drag(operator)
+    colour = (0.3, 0.8, 1.0, 0.9)
 
     def draw_settings(context, layout, tool):
-        props = tool.operator_properties(SCRATCH_OT_erase_stroke.bl_idname)
-        layout.prop(props, "radius")
+        layout.prop(tool.operator_properties(SCRATCH_TOOL_eraser.operator), "radius")
 
     def draw_cursor(context, tool, xy):
-        props = tool.operator_properties(SCRATCH_OT_erase_stroke.bl_idname)
-        _draw_brush_cursor(context, xy, props.radius, (0.3, 0.8, 1.0, 0.9))
+        props = tool.operator_properties(SCRATCH_TOOL_eraser.operator)
+        _draw_brush_cursor(context, xy, props.radius, SCRATCH_TOOL_eraser.colour)
 
 
 class SCRATCH_PT_brush_scratches(bpy.types.Panel):

@@ -20,7 +20,7 @@ import time
 import bpy
 import numpy as np
 
-from .editing import USER_ERRORS, fail
+from .editing import USER_ERRORS, ObjectModeOperator, fail
 from .mesh import Picker, check_object, picker_for
 
 __all__ = ["StrokeOperator", "StrokeDrawer", "stroke_runs", "NAVIGATION_EVENTS"]
@@ -109,7 +109,7 @@ class StrokeDrawer:
         gpu.state.blend_set("NONE")
 
 
-class StrokeOperator:
+class StrokeOperator(ObjectModeOperator):
     """Mixin for brush operators: the modal stroke (see the module docstring).
 
     Subclasses define ``execute`` (reading ``self.stroke``), ``_header`` and
@@ -119,13 +119,6 @@ class StrokeOperator:
 
     _header = "Scratch stroke"
     _status = "LMB drag: stroke  ·  Esc / RMB: cancel  ·  MMB / wheel: navigate"
-
-    @classmethod
-    def poll(cls, context):
-        if context.mode != "OBJECT":
-            cls.poll_message_set("Scratches are edited in Object Mode")
-            return False
-        return True
 
     def invoke(self, context, event):
         obj = context.active_object
