@@ -67,6 +67,13 @@ class Lines:
         return Lines(a=self.a[keep], b=self.b[keep], scratch=renumber[self.scratch[keep]],
                      width=self.width[keep], depth=self.depth[keep], unplaced=self.unplaced)
 
+    def followed_by(self, other: "Lines", first_scratch: int) -> "Lines":
+        """These lines, then ``other``'s, whose scratches are numbered from ``first_scratch``."""
+        return Lines(a=np.vstack([self.a, other.a]), b=np.vstack([self.b, other.b]),
+                     scratch=np.r_[self.scratch, other.scratch + first_scratch],
+                     width=np.r_[self.width, other.width], depth=np.r_[self.depth, other.depth],
+                     unplaced=self.unplaced + other.unplaced)
+
 
 def scratch_lines(scratches: ScratchSet, locator: UVLocator, corners, normals=None, *,
                   offset: float = 0.0, max_uv_length: float | None = None) -> Lines:

@@ -6,13 +6,14 @@ and replayable from scripts through their ``stroke`` property.
 """
 from __future__ import annotations
 
-import numpy as np
 import bpy
+import numpy as np
 from bpy.props import EnumProperty, FloatProperty
 
+from ..mitsuba_bridge.scratch import ScratchSet
 from . import storage
 from .editing import USER_ERRORS, combine, fail, plural, unit_scale, write
-from .erase import touched_scratches
+from .erase import cut_scratches, touched_scratches
 from .lines import scratch_lines
 from .mesh import MeshError, cached, matrix_key, picker_for
 from .scatter import pen_scratches, scratches_from_centres, spray_centres
@@ -114,12 +115,18 @@ class SCRATCH_OT_paint_stroke(StrokeOperator, StrokeProperties, LooksProperties,
 
 
 class SCRATCH_OT_erase_stroke(StrokeOperator, StrokeProperties, bpy.types.Operator):
-    """Erase the scratches of the active mesh that pass within the brush radius of the stroke"""
+    """Erase the scratches of the active mesh under the stroke (within the brush radius)"""
 
     bl_idname = "scratch.erase_stroke"
     bl_label = "Erase Scratches"
     bl_options = {"REGISTER", "UNDO"}
     _header = "Scratch Eraser"
+
+    erase_mode: EnumProperty(
+        name="Erase", default="CUT",
+        items=[("CUT", "Cut", "Remove the parts of scratches under the brush; the rest stays"),
+               ("WHOLE", "Whole Scratches", "Remove every scratch the brush touches, entirely")],
+        description="What the eraser removes")
 
     def execute(self, context):
         try:
@@ -128,26 +135,44 @@ class SCRATCH_OT_erase_stroke(StrokeOperator, StrokeProperties, bpy.types.Operat
             if scratches.count == 0:
                 self.report({"INFO"}, f"{obj.name} has no scratches to erase")
                 return {"CANCELLED"}
-            lines = cached("erase_lines", obj, (storage.scratch_token(obj), matrix_key(obj)),
-                           lambda: scratch_lines(scratches, UVLocator(surface.uv, surface.usable),
-                                                 surface.corners))
-            touched = touched_scratches(lines.a, lines.b, lines.scratch, [p for _, _, p in runs],
-                                        self.radius, scratches.count)
+            locator = cached("uv_locator", obj, None, lambda: UVLocator(surface.uv, surface.usable))
+            key = (storage.scratch_token(obj), matrix_key(obj))
+            lines = cached("erase_lines", obj, key, lambda: scratch_lines(scratches, locator, surface.corners))
+            stroke_points = [p for _, _, p in runs]
+            touched = touched_scratches(lines.a, lines.b, lines.scratch, stroke_points, self.radius,
+                                        scratches.count)
             if not touched.any():
                 self.report({"INFO"}, "No scratch under the stroke")
                 return {"CANCELLED"}
-            write(obj, scratches.select(~touched))
+            kept = scratches.select(~touched)
+            remaining_lines = lines.without(touched)
+            if self.erase_mode == "CUT":
+                def to_surface(uv):
+                    triangle, bary = locator.locate(uv)
+                    return surface.point(np.maximum(triangle, 0), bary), triangle >= 0
+
+                cut, _ = cut_scratches(scratches.select(touched), to_surface, stroke_points, self.radius)
+                result = ScratchSet.concatenate([kept, cut])
+                remaining_lines = remaining_lines.followed_by(scratch_lines(cut, locator, surface.corners),
+                                                              kept.count)
+            else:
+                result = kept
+            write(obj, result)
             # The next stroke starts from these lines instead of mapping every scratch again.
-            cached("erase_lines", obj, (storage.scratch_token(obj), matrix_key(obj)),
-                   lambda: lines.without(touched))
+            cached("erase_lines", obj, (storage.scratch_token(obj), matrix_key(obj)), lambda: remaining_lines)
         except USER_ERRORS as error:
             return fail(self, error)
-        self.report({"INFO"}, f"{obj.name}: erased {plural(int(touched.sum()))}; "
-                              f"{plural(scratches.count - int(touched.sum()))} left")
+        if self.erase_mode == "CUT":
+            self.report({"INFO"}, f"{obj.name}: cut {plural(int(touched.sum()))} under the stroke; "
+                                  f"{plural(result.count)} now")
+        else:
+            self.report({"INFO"}, f"{obj.name}: erased {plural(int(touched.sum()))}; "
+                                  f"{plural(result.count)} left")
         return {"FINISHED"}
 
     def draw(self, context):
         self.layout.use_property_split = True
+        self.layout.row().prop(self, "erase_mode", expand=True)
         self.layout.prop(self, "radius")
 
 
@@ -243,7 +268,9 @@ class SCRATCH_TOOL_eraser(_ScratchTool):
     colour = (0.3, 0.8, 1.0, 0.9)
 
     def draw_settings(context, layout, tool):
-        layout.prop(tool.operator_properties(SCRATCH_TOOL_eraser.operator), "radius")
+        props = tool.operator_properties(SCRATCH_TOOL_eraser.operator)
+        layout.prop(props, "erase_mode", expand=True)
+        layout.prop(props, "radius")
 
     def draw_cursor(context, tool, xy):
         props = tool.operator_properties(SCRATCH_TOOL_eraser.operator)

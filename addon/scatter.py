@@ -20,11 +20,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..mitsuba_bridge.scratch import Distribution, Gaussian, Profile, ScratchSet, Uniform, sample_parameters
+from ..mitsuba_bridge.scratch.noise import hash_uint32
 from .surface import Surface
 from .trace import BOUNDARY, END, SEAM_IN, SEAM_OUT, START, Pieces, assemble, trace_paths
 
 __all__ = ["Looks", "ScatterSpec", "Placed", "scatter", "scratches_from_centres", "pen_scratches",
-           "spray_centres", "SAGITTA_FRACTION", "MAX_SEGMENTS", "estimate_bytes"]
+           "spray_centres", "piece_seeds", "SAGITTA_FRACTION", "MAX_SEGMENTS", "estimate_bytes"]
 
 #: Arcs are cut into straight segments whose sagitta is at most this fraction of the width.
 SAGITTA_FRACTION = 0.1
@@ -209,10 +210,18 @@ def _build_set(pieces: Pieces, source: np.ndarray, params: dict) -> ScratchSet:
         variation = fields[name].copy()
         variation[:, 1] *= share
         fields[name] = variation
-    # Each piece its own seed: the scratch's seed plus the piece's rank within it.
-    rank = np.arange(len(source)) - first[inverse]
-    fields["seed"] = (fields["seed"].astype(np.uint64) + rank.astype(np.uint64)).astype(np.uint32)
+    fields["seed"] = piece_seeds(fields["seed"], np.arange(len(source)) - first[inverse])
     return ScratchSet(uv=pieces.uv, offsets=pieces.offsets, **fields)
+
+
+def piece_seeds(seed, rank) -> np.ndarray:
+    """Seeds for the pieces a scratch is cut into: the first keeps the scratch's seed, the others
+    get well-mixed new ones (so pieces do not repeat each other's noise)."""
+    seed = np.asarray(seed, dtype=np.uint32)
+    rank = np.asarray(rank, dtype=np.uint32)
+    with np.errstate(over="ignore"):
+        mixed = hash_uint32(seed ^ hash_uint32(rank * np.uint32(0x9E3779B9)))
+    return np.where(rank == 0, seed, mixed).astype(np.uint32)
 
 
 def _cat(parts, dtype, width=None):

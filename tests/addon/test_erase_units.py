@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from scratch_iridescence.addon.erase import densify, touched_scratches
+from scratch_iridescence.addon.erase import cut_scratches, densify, near_stroke, touched_scratches
 from scratch_iridescence.addon.units import MemoryLimitError, check_memory, format_length
 
 
@@ -92,3 +92,34 @@ print('ok')
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=root)
     assert result.returncode == 0, result.stderr
     assert result.stdout.strip() == "ok"
+
+
+def test07_near_stroke_matches_exact_distances():
+    rng = np.random.default_rng(5)
+    points = rng.uniform(0, 1, (3000, 3)) * [1, 1, 0.1]
+    runs = [np.array([[0.1, 0.1, 0.0], [0.9, 0.8, 0.05]]), np.array([[0.5, 0.2, 0.0]])]
+    near = near_stroke(points, runs, 0.1)
+    a, b = runs[0]
+    t = np.clip((points - a) @ (b - a) / ((b - a) @ (b - a)), 0, 1)
+    distance = np.minimum(np.linalg.norm(a + t[:, None] * (b - a) - points, axis=1),
+                          np.linalg.norm(points - runs[1][0], axis=1))
+    assert np.array_equal(near, distance <= 0.1)
+
+
+def test08_cut_keeps_the_parts_outside_the_brush():
+    from scratch_iridescence.mitsuba_bridge.scratch import ScratchSet
+
+    scratches = ScratchSet.from_polylines([np.array([[0.0, 0.0], [0.5, 0.0], [1.0, 0.0]]),
+                                           np.array([[0.0, 0.9], [1.0, 0.9]])],
+                                          width=[1e-6, 2e-6], depth=1e-7, width_variation=(0.5, 0.02))
+    to_surface = lambda uv: (np.column_stack([uv, np.zeros(len(uv))]), np.ones(len(uv), bool))  # noqa: E731
+    stroke = [np.array([[0.3, -1.0, 0.0], [0.3, 0.5, 0.0]])]
+    result, touched = cut_scratches(scratches, to_surface, stroke, 0.1)
+    assert list(touched) == [True, False]
+    assert result.count == 3 and result.select([0]) == scratches.select([1])
+    left, right = result.polyline(1), result.polyline(2)
+    assert left[0, 0] == 0.0 and 0.175 <= left[-1, 0] <= 0.2 + 1e-12
+    assert right.tolist()[-2:] == [[0.5, 0.0], [1.0, 0.0]] and 0.4 - 1e-12 <= right[0, 0] <= 0.425  # vertices kept
+    np.testing.assert_allclose(result.width_variation[1:, 1].sum(), 0.02 * 0.8, atol=0.02 * 0.05)
+    untouched, none = cut_scratches(scratches, to_surface, [np.array([[5.0, 5.0, 0.0]])], 0.1)
+    assert untouched is scratches and not none.any()

@@ -162,7 +162,7 @@ def test11_eraser_removes_exactly_the_scratches_under_the_stroke(plane):
     storage.write_scratches(plane, scratches)
     stroke_points = np.column_stack([np.linspace(-0.7, 0.7, 8), np.linspace(-0.3, 0.4, 8), np.zeros(8)])
     radius = 0.08
-    assert erase(stroke_points, radius=radius) == {"FINISHED"}
+    assert erase(stroke_points, radius=radius, erase_mode="WHOLE") == {"FINISHED"}
     # Independent check on the plane's exact geometry: sampled segment-to-stroke distances.
     p = plane_points(scratches)
     distance = np.array([distance_to_polyline(np.linspace(p[2 * i], p[2 * i + 1], 200), stroke_points).min()
@@ -177,13 +177,29 @@ def test11_eraser_removes_exactly_the_scratches_under_the_stroke(plane):
     assert np.array_equal(was_kept[clear], expected_kept[clear])
 
 
-def test12_erasing_nothing_changes_nothing(scratched_plane):
+def test12_cutting_eraser_removes_only_what_is_under_the_brush(plane):
+    line = ScratchSet.from_polylines([np.array([[0.1, 0.5], [0.9, 0.5]]), np.array([[0.1, 0.1], [0.2, 0.1]])],
+                                     width=[1e-6, 2e-6], depth=1e-7, depth_variation=(1.1, 0.04), seed=[3, 4])
+    storage.write_scratches(plane, line)  # in 3D: y = 0, x from -0.8 to 0.8; and a short one far away
+    radius = 0.1
+    assert erase([(0.0, -0.5, 0.0), (0.0, 0.5, 0.0)], radius=radius) == {"FINISHED"}
+    result = storage.read_scratches(plane)
+    assert result.count == 3
+    assert result.select([0]) == line.select([1])  # untouched, unchanged
+    left, right = plane_points(result.select([1])), plane_points(result.select([2]))
+    np.testing.assert_allclose([left[0, 0], right[-1, 0]], [-0.8, 0.8], atol=1e-9)
+    assert -1.25 * radius <= left[-1, 0] <= -radius + 1e-9 and radius - 1e-9 <= right[0, 0] <= 1.25 * radius
+    assert np.all(result.width[1:] == 1e-6) and len(set(result.seed)) == 3
+    np.testing.assert_allclose(result.depth_variation[1:, 1].sum(), 0.04 * (1 - 2 * radius / 1.6), rtol=0.05)
+
+
+def test13_erasing_nothing_changes_nothing(scratched_plane):
     before = storage.raw_scratch_bytes(scratched_plane)
     assert erase([(0.99, 0.99, 0.0)], radius=0.001) == {"CANCELLED"}
     assert storage.raw_scratch_bytes(scratched_plane) == before
 
 
-def test13_paint_and_erase_undo(scratched_plane):
+def test14_paint_and_erase_undo(scratched_plane):
     bpy.ops.ed.undo_push(message="before")
     before = storage.raw_scratch_bytes(scratched_plane)
     paint([(-0.5, 0.0, 0.0), (0.5, 0.0, 0.0)])
@@ -195,7 +211,7 @@ def test13_paint_and_erase_undo(scratched_plane):
     assert storage.raw_scratch_bytes(bpy.data.objects["Plane"]) == before
 
 
-def test14_invoke_without_a_viewport_replays_the_stroke(plane):
+def test15_invoke_without_a_viewport_replays_the_stroke(plane):
     points = [(-0.5, 0.2, 0.0), (0.5, 0.2, 0.0)]
     bpy.ops.scratch.paint_stroke("INVOKE_DEFAULT", stroke=stroke(points), seed=3)
     assert storage.read_scratches(plane).count == 1

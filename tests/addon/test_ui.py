@@ -103,7 +103,7 @@ def test05_tool_settings_draw(addon):
     assert {"brush_mode", "radius", "density", "SCRATCH_PT_brush_scratches"} <= set(layout.shown)
     layout = Layout()
     SCRATCH_TOOL_eraser.draw_settings(bpy.context, layout, tool)
-    assert layout.shown == ["radius"]
+    assert layout.shown == ["erase_mode", "radius"]
     popover = Layout()
     SCRATCH_PT_brush_scratches.draw(SimpleNamespace(layout=popover), bpy.context)  # no tool active: nothing
 
