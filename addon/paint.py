@@ -16,10 +16,11 @@ from .editing import USER_ERRORS, combine, fail, plural, unit_scale, write
 from .erase import cut_scratches, touched_scratches
 from .lines import scratch_lines
 from .mesh import MeshError, cached, matrix_key, picker_for
-from .scatter import pen_scratches, scratches_from_centres, spray_centres
+from .scatter import estimate_bytes, pen_scratches, scratches_from_centres, spray_centres
 from .settings import (LengthProperties, LooksProperties, StrokeProperties, draw_lengths, draw_looks,
                        seed_property)
 from .stroke import SNAP_FRACTION, StrokeOperator, stroke_runs
+from .units import check_memory
 from .uvmap import UVLocator
 
 __all__ = ["SCRATCH_OT_paint_stroke", "SCRATCH_OT_erase_stroke", "SCRATCH_TOOL_brush", "SCRATCH_TOOL_eraser"]
@@ -86,6 +87,9 @@ class SCRATCH_OT_paint_stroke(StrokeOperator, StrokeProperties, LooksProperties,
 
     def _spray(self, context, surface, picker, runs, looks, rng):
         length_min, length_max = self.length_range()
+        travelled = sum(float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum()) for _, _, p in runs)
+        expected = self.density * (len(runs) + travelled / self.radius)
+        check_memory(estimate_bytes(int(expected) + 1), f"Spraying about {expected:,.0f} scratches")
         centres, directions = spray_centres(rng, [p for _, _, p in runs], [surface.normal[t] for t, _, _ in runs],
                                             self.radius, self.density, self.jitter)
         triangle, bary, _, hit = picker.nearest(centres, 0.5 * self.radius + SNAP_FRACTION * surface.size)

@@ -176,6 +176,25 @@ def test13_faces_without_uv_area(scratched_plane):
     assert unchanged(scratched_plane, before)
 
 
+def test13b_some_faces_without_uv_area_are_skipped_with_a_warning(empty_scene, capsys):
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=3, y_subdivisions=3, size=2.0)  # 2 x 2 quads
+    grid = bpy.context.active_object
+    layer = grid.data.uv_layers.active
+    for loop in grid.data.polygons[0].loop_indices:
+        layer.data[loop].uv = (0.1, 0.1)
+    grid.data.update()
+    assert generate(count=400, length_min=0.01, length_max=0.02) == {"FINISHED"}
+    assert "2 faces without area in 3D or in the UV map got no scratches" in capsys.readouterr().out
+    scratches = storage.read_scratches(grid)
+    surface = world_surface(grid, bpy.context.evaluated_depsgraph_get())
+    triangle, bary = UVLocator(surface.uv, surface.usable).locate(scratches.uv)
+    assert np.all(triangle >= 0) and np.all(surface.usable[triangle])
+    corners = np.array([grid.data.vertices[v].co[:2] for v in grid.data.polygons[0].vertices])
+    middle = surface.point(triangle, bary)[:, :2]
+    inside = np.all((middle > corners.min(axis=0) + 1e-9) & (middle < corners.max(axis=0) - 1e-9), axis=1)
+    assert not inside.any()
+
+
 def test14_count_beyond_memory(scratched_plane):
     before = storage.raw_scratch_bytes(scratched_plane)
     with pytest.raises(RuntimeError, match="needs about .* GiB of memory"):

@@ -122,6 +122,13 @@ def test07_spray_click_sprays_a_dab(plane):
     assert 15 < scratches.count < 70
 
 
+def test07b_absurd_spray_density_is_refused(scratched_plane):
+    before = storage.raw_scratch_bytes(scratched_plane)
+    with pytest.raises(RuntimeError, match="Spraying about .* needs about .* GiB"):
+        paint([(-0.5, 0.0, 0.0), (0.5, 0.0, 0.0)], brush_mode="SPRAY", radius=1e-6, density=1e6)
+    assert storage.raw_scratch_bytes(scratched_plane) == before
+
+
 def test08_stroke_entirely_off_the_mesh(scratched_plane):
     before = storage.raw_scratch_bytes(scratched_plane)
     with pytest.raises(RuntimeError, match="The stroke misses 'Plane'"):
