@@ -109,15 +109,20 @@ def near_stroke(points, runs, radius: float) -> np.ndarray:
     if not len(a) or not len(points):
         return near
     low, high = np.minimum(a, b), np.maximum(a, b)
-    chunk = 4096
+    # Visit the points in spatial order (cells of 16 radii), so each chunk is compact and
+    # its bounding box keeps only the nearby stroke segments.
+    cell = np.floor((points - points.min(axis=0)) / (16.0 * radius)).astype(np.int64)
+    order = np.lexsort(cell.T[::-1])
+    chunk = 1024
     for start in range(0, len(points), chunk):
-        block = points[start:start + chunk]
+        index = order[start:start + chunk]
+        block = points[index]
         candidate = np.flatnonzero(np.all((high >= block.min(axis=0) - radius)
                                           & (low <= block.max(axis=0) + radius), axis=1))
         batch = max(1, _PAIR_BUDGET // len(block))
         for first in range(0, len(candidate), batch):
             c = candidate[first:first + batch]
-            near[start:start + chunk] |= _min_distance2_to_points(block, a[c], b[c]) <= radius * radius
+            near[index] |= _min_distance2_to_points(block, a[c], b[c]) <= radius * radius
     return near
 
 
