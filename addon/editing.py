@@ -12,7 +12,8 @@ from .mesh import MeshError
 from .surface import SurfaceError
 from .units import MemoryLimitError
 
-__all__ = ["USER_ERRORS", "ObjectModeOperator", "combine", "write", "unit_scale", "plural", "fail"]
+__all__ = ["USER_ERRORS", "ObjectModeOperator", "combine", "write", "unit_scale", "plural", "fail",
+           "warn_relaxed_arcs"]
 
 #: Exceptions whose message is a useful report for the user.
 USER_ERRORS = (MeshError, SurfaceError, ScratchFormatError, MemoryLimitError, ValueError, OSError)
@@ -60,3 +61,13 @@ def fail(operator, error) -> set:
         "Not enough memory for this operation; ask for fewer scratches"
     operator.report({"ERROR"}, message)
     return {"CANCELLED"}
+
+
+def warn_relaxed_arcs(operator, placed) -> None:
+    """Say so when some arcs were too long or too bent to keep their sagitta below the limit."""
+    if placed.relaxed_arcs:
+        from .scatter import MAX_SEGMENTS, SAGITTA_FRACTION
+
+        operator.report({"WARNING"}, f"{plural(placed.relaxed_arcs, 'arc')} would need more than "
+                                     f"{MAX_SEGMENTS} straight segments to keep the sagitta below "
+                                     f"{SAGITTA_FRACTION:g} × width; they use {MAX_SEGMENTS}")

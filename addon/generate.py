@@ -6,7 +6,8 @@ import numpy as np
 from bpy.props import EnumProperty, FloatProperty, IntProperty
 
 from . import storage
-from .editing import USER_ERRORS, ObjectModeOperator, combine, fail, plural, unit_scale, write
+from .editing import (USER_ERRORS, ObjectModeOperator, combine, fail, plural, unit_scale, warn_relaxed_arcs,
+                      write)
 from .mesh import check_object, world_surface
 from .scatter import ScatterSpec, estimate_bytes, expected_vertices, scatter
 from .settings import LengthProperties, LooksProperties, draw_lengths, draw_looks, mode_property, seed_property
@@ -62,6 +63,7 @@ class SCRATCH_OT_generate(ObjectModeOperator, LooksProperties, LengthProperties,
         except MemoryError as error:
             return fail(self, error)
 
+        warn_relaxed_arcs(self, placed)
         skipped = int((~surface.usable).sum())
         message = f"{obj.name}: generated {plural(placed.scratches.count)}"
         if placed.scratches.count != spec.count:

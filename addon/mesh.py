@@ -19,7 +19,8 @@ from bpy.app.handlers import persistent
 from .surface import Surface, SurfaceError
 
 __all__ = ["MeshError", "MeshArrays", "scratch_uv_layer", "mesh_arrays", "world_surface", "Picker",
-           "picker_for", "matrix_key", "geometry_generation", "cached", "peek", "clear_caches", "check_object", "register", "unregister"]
+           "picker_for", "matrix_key", "geometry_generation", "cached", "peek", "clear_caches", "check_object",
+           "register", "unregister"]
 
 
 class MeshError(ValueError):

@@ -12,7 +12,7 @@ from bpy.props import EnumProperty, FloatProperty
 
 from ..mitsuba_bridge.scratch import ScratchSet
 from . import storage
-from .editing import USER_ERRORS, combine, fail, plural, unit_scale, write
+from .editing import USER_ERRORS, combine, fail, plural, unit_scale, warn_relaxed_arcs, write
 from .erase import cut_scratches, touched_scratches
 from .lines import scratch_lines
 from .mesh import MeshError, cached, matrix_key, picker_for
@@ -81,6 +81,7 @@ class SCRATCH_OT_paint_stroke(StrokeOperator, StrokeProperties, LooksProperties,
             return fail(self, error)
         except MemoryError as error:
             return fail(self, error)
+        warn_relaxed_arcs(self, placed)
         self.report({"INFO"}, f"{obj.name}: painted {plural(placed.scratches.count)}; "
                               f"{plural(result.count)} in all")
         return {"FINISHED"}

@@ -99,6 +99,7 @@ class Placed:
     point: np.ndarray = field(repr=False)
     piece_length: np.ndarray = field(repr=False)
     requested: int = 0
+    relaxed_arcs: int = 0  # arcs that needed more than MAX_SEGMENTS segments (sagitta rule relaxed)
 
 
 def estimate_bytes(count: int, vertices_per_scratch: float = 4.0) -> int:
@@ -159,7 +160,8 @@ def scratches_from_centres(surface: Surface, triangle, bary, direction, length, 
     count = len(triangle)
     bend = np.zeros(count) if bend is None else np.asarray(bend, dtype=np.float64)
     width_units = params["width"] / unit_scale
-    segments = np.minimum(_segments_for(length, bend, width_units), MAX_SEGMENTS)
+    needed = _segments_for(length, bend, width_units)
+    segments = np.minimum(needed, MAX_SEGMENTS)
     turn_every = length / segments
     turn_angle = bend / segments
 
@@ -175,7 +177,8 @@ def scratches_from_centres(surface: Surface, triangle, bary, direction, length, 
         lengths.append(pieces.length)
     scratches = ScratchSet.concatenate(sets) if sets else ScratchSet.empty()
     return Placed(scratches=scratches, source=_cat(sources, np.int64), point=_cat(points, np.float64, 3),
-                  piece_length=_cat(lengths, np.float64), requested=count)
+                  piece_length=_cat(lengths, np.float64), requested=count,
+                  relaxed_arcs=int(np.count_nonzero(needed > MAX_SEGMENTS)))
 
 
 def _trace_centred(surface, triangle, bary, direction, length, turn_angle, turn_every) -> Pieces:

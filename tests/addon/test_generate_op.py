@@ -89,7 +89,8 @@ def test06_cube_scratches_are_uniform_over_faces_and_cut_at_seams(cube):
     triangle, bary = UVLocator(surface.uv).locate(scratches.uv[scratches.offsets[:-1]])
     assert np.all(triangle >= 0)
     start = surface.point(triangle, bary)
-    face = np.argmax(np.abs(start), axis=1) * 2 + (start[np.arange(len(start)), np.argmax(np.abs(start), axis=1)] > 0)
+    axis = np.argmax(np.abs(start), axis=1)
+    face = axis * 2 + (start[np.arange(len(start)), axis] > 0)
     counts = np.bincount(face, minlength=6)
     assert stats.chisquare(counts).pvalue > P_MIN
 
@@ -164,6 +165,18 @@ def test12_object_that_is_not_a_mesh(empty_scene):
     bpy.ops.curve.primitive_bezier_curve_add()
     with pytest.raises(RuntimeError, match="curve object"):
         generate(count=10)
+
+
+def test12b_no_active_object(empty_scene):
+    with pytest.raises(RuntimeError, match="No active object"):
+        generate(count=10)
+
+
+def test12c_arcs_too_long_for_the_segment_limit_are_reported(plane, capsys):
+    generate(count=5, length_min=1.0, length_max=1.5, bend=np.radians(90), width_distribution="UNIFORM",
+             width_min=100.0, width_max=200.0)
+    assert "5 arcs would need more than 256 straight segments" in capsys.readouterr().out
+    assert storage.read_scratches(plane).vertex_counts.max() <= 258
 
 
 def test13_faces_without_uv_area(scratched_plane):

@@ -93,7 +93,8 @@ def test06_every_path_walks_its_full_length_on_a_closed_surface():
     # Every record lies in its triangle's plane, inside it.
     b = surface.barycentric(trace.triangle, trace.point)
     assert b.min() > -1e-9
-    offset = np.einsum("ni,ni->n", trace.point - surface.corners[trace.triangle, 0], surface.normal[trace.triangle])
+    offset = np.einsum("ni,ni->n", trace.point - surface.corners[trace.triangle, 0],
+                       surface.normal[trace.triangle])
     assert np.abs(offset).max() < 1e-9
 
 

@@ -10,7 +10,7 @@ import pytest
 
 bpy = pytest.importorskip("bpy")
 from conftest import stroke  # noqa: E402
-from scratch_iridescence.addon import overlay, panels, storage  # noqa: E402
+from scratch_iridescence.addon import overlay, panels  # noqa: E402
 from scratch_iridescence.addon.files import SCRATCH_OT_export_file, SCRATCH_OT_import_file  # noqa: E402
 from scratch_iridescence.addon.generate import SCRATCH_OT_generate  # noqa: E402
 from scratch_iridescence.addon.paint import (SCRATCH_OT_erase_stroke, SCRATCH_OT_paint_stroke,  # noqa: E402
@@ -87,7 +87,8 @@ def test04_tools_are_in_the_object_mode_toolbar(addon):
     toolbar = ToolSelectPanelHelper._tool_class_from_space_type("VIEW_3D")
     tools = {item.idname: item for item in ToolSelectPanelHelper._tools_flatten(toolbar._tools["OBJECT"])
              if item is not None}
-    for tool, operator in ((SCRATCH_TOOL_brush, "scratch.paint_stroke"), (SCRATCH_TOOL_eraser, "scratch.erase_stroke")):
+    for tool, operator in ((SCRATCH_TOOL_brush, "scratch.paint_stroke"),
+                           (SCRATCH_TOOL_eraser, "scratch.erase_stroke")):
         item = tools[tool.bl_idname]
         assert item.label == tool.bl_label and item.draw_cursor is not None
         keymap = bpy.context.window_manager.keyconfigs.addon.keymaps[item.keymap[0]]

@@ -7,7 +7,7 @@ from scratch_iridescence.addon.lines import COLOUR_MAP, line_colours, overlay_ar
 from scratch_iridescence.addon.scatter import Looks, ScatterSpec, scatter
 from scratch_iridescence.addon.surface import Surface
 from scratch_iridescence.addon.uvmap import UVLocator
-from scratch_iridescence.mitsuba_bridge.scratch import Constant, ScratchSet, Uniform, subdivide
+from scratch_iridescence.mitsuba_bridge.scratch import ScratchSet, Uniform, subdivide
 
 
 def brute_force(triangle_uv, points):
