@@ -203,7 +203,8 @@ def _draw_brush_cursor(context, xy, radius, colour):
         except USER_ERRORS:
             picker = None
         if picker is not None:
-            mouse = (xy[0], xy[1])  # region coordinates, as the cursor is drawn
+            # Cursors get window coordinates and draw in window space; views use region coordinates.
+            mouse = (xy[0] - region.x, xy[1] - region.y)
             hit = picker.ray_cast(view3d_utils.region_2d_to_origin_3d(region, view, mouse),
                                   view3d_utils.region_2d_to_vector_3d(region, view, mouse))
             if hit is not None:
@@ -214,7 +215,7 @@ def _draw_brush_cursor(context, xy, radius, colour):
                                            + np.sin(angle)[:, None] * surface.bitangent[triangle]))
                 projected = [view3d_utils.location_3d_to_region_2d(region, view, p) for p in ring]
                 if all(p is not None for p in projected):
-                    outline = [(p.x, p.y) for p in projected]
+                    outline = [(p.x + region.x, p.y + region.y) for p in projected]
     if outline is None:
         draw_circle_2d(xy, (colour[0], colour[1], colour[2], 0.5), 6.0, segments=16)
         return

@@ -246,3 +246,20 @@ def test17_the_evaluated_mesh_is_scratched(plane):
     u = scratches.uv[scratches.offsets[:-1], 0]
     counts = np.histogram(u, bins=[0, 1, 2, 3])[0]
     assert stats.chisquare(counts).pvalue > P_MIN
+
+
+@pytest.mark.slow
+def test18_the_dining_table_scale(plane, tmp_path):
+    # The paper's dining table: 300 000 scratches, stored, reloaded and drawn.
+    from scratch_iridescence.addon.overlay import overlay_data
+
+    assert generate(count=300_000, length_min=0.005, length_max=0.03) == {"FINISHED"}
+    data = storage.raw_scratch_bytes(plane)
+    assert storage.scratch_summary(plane)["count"] == 300_000
+    path = str(tmp_path / "table.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.open_mainfile(filepath=path)
+    table = bpy.data.objects["Plane"]
+    assert storage.raw_scratch_bytes(table) == data
+    lines = overlay_data(table, bpy.context.evaluated_depsgraph_get())
+    assert lines.unplaced == 0 and len(lines.positions) >= 2 * 300_000
