@@ -4,7 +4,7 @@ Modules that define Blender classes expose ``register()`` / ``unregister()``;
 they are listed here in registration order (property groups first).  They are
 imported when the add-on registers, not when this package is imported: the
 Blender-free helpers next to them (``surface``, ``trace``, ``scatter``,
-``uvmap``, ``lines``, ``erase``, ``units``) must stay importable without ``bpy``
+``brush``, ``uvmap``, ``lines``, ``erase``, ``units``) must stay importable without ``bpy``
 so that tests and scripts can use them anywhere.
 """
 from __future__ import annotations

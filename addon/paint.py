@@ -16,7 +16,8 @@ from .editing import USER_ERRORS, combine, fail, plural, unit_scale, warn_relaxe
 from .erase import cut_scratches, touched_scratches
 from .lines import scratch_lines
 from .mesh import MeshError, cached, matrix_key, picker_for
-from .scatter import estimate_bytes, pen_scratches, scratches_from_centres, spray_centres
+from .brush import pen_scratches, spray_centres
+from .scatter import estimate_bytes, scratches_from_centres
 from .settings import (LengthProperties, LooksProperties, StrokeProperties, draw_lengths, draw_looks,
                        seed_property)
 from .stroke import SNAP_FRACTION, StrokeOperator, stroke_runs

@@ -84,7 +84,7 @@ class Block:
             raise ImportError('blocked: ' + name)
 sys.meta_path.insert(0, Block())
 import importlib
-for name in ('surface', 'trace', 'scatter', 'uvmap', 'lines', 'erase', 'units'):
+for name in ('surface', 'trace', 'scatter', 'brush', 'uvmap', 'lines', 'erase', 'units'):
     importlib.import_module('scratch_iridescence.addon.' + name)
 print('ok')
 """
