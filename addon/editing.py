@@ -15,8 +15,8 @@ from .units import MemoryLimitError
 __all__ = ["USER_ERRORS", "ObjectModeOperator", "combine", "write", "unit_scale", "plural", "fail",
            "warn_relaxed_arcs"]
 
-#: Exceptions whose message is a useful report for the user.
-USER_ERRORS = (MeshError, SurfaceError, ScratchFormatError, MemoryLimitError, ValueError, OSError)
+#: Exceptions that become a report for the user (a MemoryError without a message gets one).
+USER_ERRORS = (MeshError, SurfaceError, ScratchFormatError, MemoryLimitError, MemoryError, ValueError, OSError)
 
 
 class ObjectModeOperator:

@@ -70,8 +70,6 @@ class SCRATCH_OT_import_file(ObjectModeOperator, bpy.types.Operator, ImportHelpe
             write(obj, result)
         except USER_ERRORS as error:
             return fail(self, error)
-        except MemoryError as error:
-            return fail(self, error)
         self.report({"INFO"}, f"{obj.name}: imported {plural(loaded.count)} from {path.name}")
         if outside:
             verb = "lies" if outside == 1 else "lie"

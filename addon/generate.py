@@ -60,8 +60,6 @@ class SCRATCH_OT_generate(ObjectModeOperator, LooksProperties, LengthProperties,
             write(obj, result)
         except USER_ERRORS as error:
             return fail(self, error)
-        except MemoryError as error:
-            return fail(self, error)
 
         warn_relaxed_arcs(self, placed)
         skipped = int((~surface.usable).sum())

@@ -12,11 +12,11 @@ from bpy.props import EnumProperty, FloatProperty
 
 from ..mitsuba_bridge.scratch import ScratchSet
 from . import storage
+from .brush import pen_scratches, spray_centres
 from .editing import USER_ERRORS, combine, fail, plural, unit_scale, warn_relaxed_arcs, write
 from .erase import cut_scratches, touched_scratches
 from .lines import scratch_lines
 from .mesh import MeshError, cached, matrix_key, picker_for
-from .brush import pen_scratches, spray_centres
 from .scatter import estimate_bytes, scratches_from_centres
 from .settings import (LengthProperties, LooksProperties, StrokeProperties, draw_lengths, draw_looks,
                        seed_property)
@@ -79,8 +79,6 @@ class SCRATCH_OT_paint_stroke(StrokeOperator, StrokeProperties, LooksProperties,
             result = combine(obj, placed.scratches, "ADD")
             write(obj, result)
         except USER_ERRORS as error:
-            return fail(self, error)
-        except MemoryError as error:
             return fail(self, error)
         warn_relaxed_arcs(self, placed)
         self.report({"INFO"}, f"{obj.name}: painted {plural(placed.scratches.count)}; "

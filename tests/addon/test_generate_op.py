@@ -215,6 +215,19 @@ def test14_count_beyond_memory(scratched_plane):
     assert unchanged(scratched_plane, before)
 
 
+def test14b_running_out_of_memory_midway(scratched_plane, monkeypatch):
+    import scratch_iridescence.addon.generate as generate_module
+
+    def exhausted(*_args, **_kwargs):
+        raise MemoryError()
+
+    before = storage.raw_scratch_bytes(scratched_plane)
+    monkeypatch.setattr(generate_module, "scatter", exhausted)
+    with pytest.raises(RuntimeError, match="Not enough memory"):
+        generate(count=10)
+    assert unchanged(scratched_plane, before)
+
+
 @pytest.mark.parametrize("settings, message", [
     (dict(depth_distribution="UNIFORM", depth_min=500.0, depth_max=100.0), "Depth: the maximum"),
     (dict(width_distribution="GAUSSIAN", width_mean=0.0, width_std=0.0), "no positive values"),
