@@ -121,7 +121,7 @@ def main():
         t_erase, _ = best_of(repeat, first_stroke, setup=lambda: bpy.ops.scratch.generate(**settings))
         t_next, _ = best_of(1, lambda: bpy.ops.scratch.erase_stroke(stroke=line[:300], radius=0.02,
                                                                      erase_mode=mode))
-        print(f"  eraser ({mode.lower():5}), first stroke  {t_erase:7.3f} s   (maps all scratches to 3D once); "
+        print(f"  eraser {mode.lower():5}, first stroke    {t_erase:7.3f} s   (maps all scratches to 3D once); "
               f"next stroke {t_next:.3f} s")
     scratch_iridescence.unregister()
 
