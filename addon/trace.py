@@ -26,6 +26,7 @@ __all__ = ["Trace", "trace_paths", "assemble", "Pieces"]
 # Record kinds.
 START, TURN, EDGE, SEAM_OUT, SEAM_IN, END, BOUNDARY = range(7)
 _STUCK_STEPS = 16  # a path that makes no progress this many times in a row is stopped
+_TURNS_PER_STEP = 8  # turns of an arc taken at once inside a triangle (closed form)
 
 
 @dataclass(frozen=True, eq=False)
@@ -105,19 +106,22 @@ def trace_paths(surface: Surface, triangle, bary, direction, length, *, turn_ang
     recorder = _Recorder(surface, record)
     everyone = np.arange(n)
     recorder.add(everyone, 0, START, triangle, bary)
+    sequence = np.ones(n, dtype=np.int64)  # order of each path's next record
 
     active = everyone[remaining > 0]
     recorder.add(everyone[remaining <= 0], 1, END, triangle[remaining <= 0], bary[remaining <= 0])
     step = 0
     while active.size:
         step += 1
-        order = 2 * step
+        if turning:
+            _advance_turns(surface, active, triangle, bary, direction, remaining, next_turn, travelled,
+                           turn_angle, turn_every, sequence, recorder)
+        order = sequence[active]
         t = triangle[active]
         b = bary[active]
         d = direction[active]
         # Barycentric velocity of the direction; exit where a coordinate reaches 0.
-        v12 = np.einsum("nij,nj->ni", surface.to_bary[t], d)
-        v = np.column_stack([-v12.sum(axis=1), v12])
+        v = _bary_velocity(surface, t, d)
         with np.errstate(divide="ignore", invalid="ignore"):
             exit_at = np.where(v < 0, -b / v, np.inf)
         edge = np.argmin(exit_at, axis=1)
@@ -141,12 +145,12 @@ def trace_paths(surface: Surface, triangle, bary, direction, length, *, turn_ang
 
         # -- ends
         done = active[ends]
-        recorder.add(done, order, END, triangle[done], bary[done])
+        recorder.add(done, order[ends], END, triangle[done], bary[done])
 
         # -- turns: rotate about the normal
         turned = active[turns]
         if turned.size:
-            recorder.add(turned, order, TURN, triangle[turned], bary[turned])
+            recorder.add(turned, order[turns], TURN, triangle[turned], bary[turned])
             angle = turn_angle[turned]
             nrm = surface.normal[triangle[turned]]
             d = direction[turned]
@@ -155,20 +159,21 @@ def trace_paths(surface: Surface, triangle, bary, direction, length, *, turn_ang
 
         # -- edge crossings
         crossing = active[exits]
+        order = order[exits]
         k = edge[exits]
         t = triangle[crossing]
         other = surface.neighbour[t, k]
         blocked = (other < 0) | (stuck[crossing] > _STUCK_STEPS) | (step >= max_steps)
         stopped = crossing[blocked]
-        recorder.add(stopped, order, BOUNDARY, triangle[stopped], bary[stopped])
+        recorder.add(stopped, order[blocked], BOUNDARY, triangle[stopped], bary[stopped])
         go = ~blocked
-        crossing, k, t, other = crossing[go], k[go], t[go], other[go]
+        crossing, k, t, other, order = crossing[go], k[go], t[go], other[go], order[go]
         if crossing.size:
             seam = surface.seam[t, k]
             flat = surface.flat[t, k]
-            recorder.add(crossing[seam], order, SEAM_OUT, t[seam], bary[crossing[seam]])
+            recorder.add(crossing[seam], order[seam], SEAM_OUT, t[seam], bary[crossing[seam]])
             visible = ~seam & ~flat
-            recorder.add(crossing[visible], order, EDGE, t[visible], bary[crossing[visible]])
+            recorder.add(crossing[visible], order[visible], EDGE, t[visible], bary[crossing[visible]])
 
             point = surface.point(t, bary[crossing])
             other_edge = surface.neighbour_edge[t, k]
@@ -192,13 +197,68 @@ def trace_paths(surface: Surface, triangle, bary, direction, length, *, turn_ang
             triangle[crossing] = other
             bary[crossing] = new_b
             direction[crossing] = new_d
-            recorder.add(crossing[seam], order + 1, SEAM_IN, other[seam], new_b[seam])
+            recorder.add(crossing[seam], order[seam] + 1, SEAM_IN, other[seam], new_b[seam])
 
+        sequence[active] += 2
         keep = ~ends
         keep[exits] = ~blocked
         active = active[keep]
 
     return recorder.finish(triangle, bary, direction, travelled)
+
+
+def _advance_turns(surface, candidates, triangle, bary, direction, remaining, next_turn, travelled,
+                   turn_angle, turn_every, sequence, recorder) -> None:
+    """Take up to ``_TURNS_PER_STEP`` turns of each arc at once, in closed form.
+
+    Inside one (convex) triangle the arc is a polygon whose legs have known
+    directions, so its next vertices follow from sums of barycentric velocities;
+    the turns are accepted while the vertices stay inside the triangle and short
+    of the path's end.  What comes after (an exit, the end, the next turn) is
+    left to the ordinary step.
+    """
+    paths = candidates[turn_angle[candidates] != 0]
+    if not paths.size:
+        return
+    t = triangle[paths]
+    d = direction[paths]
+    w = np.cross(surface.normal[t], d)
+    v0 = _bary_velocity(surface, t, d)
+    w0 = _bary_velocity(surface, t, w)
+    phi = turn_angle[paths]
+    k = np.arange(_TURNS_PER_STEP)
+    angle = phi[:, None] * k  # direction of leg k: R(k phi) d
+    velocity = np.cos(angle)[:, :, None] * v0[:, None, :] + np.sin(angle)[:, :, None] * w0[:, None, :]
+    legs = np.empty((len(paths), _TURNS_PER_STEP))
+    legs[:, 0] = next_turn[paths]
+    legs[:, 1:] = turn_every[paths][:, None]
+    vertex = bary[paths][:, None, :] + np.cumsum(legs[:, :, None] * velocity, axis=1)
+    walked = np.cumsum(legs, axis=1)
+    valid = (vertex.min(axis=2) >= -1e-12) & (walked < remaining[paths][:, None])
+    taken = np.cumprod(valid, axis=1).sum(axis=1)
+    go = taken > 0
+    if not go.any():
+        return
+    paths, t, d, w, phi, taken = paths[go], t[go], d[go], w[go], phi[go], taken[go]
+    vertex, walked = vertex[go], walked[go]
+    np.maximum(vertex, 0.0, out=vertex)
+    vertex /= vertex.sum(axis=2, keepdims=True)
+    row, column = np.nonzero(k[None, :] < taken[:, None])
+    recorder.add(paths[row], sequence[paths][row] + column, TURN, t[row], vertex[row, column])
+    sequence[paths] += taken
+    last = np.arange(len(paths)), taken - 1
+    bary[paths] = vertex[last]
+    turned = phi * taken
+    direction[paths] = np.cos(turned)[:, None] * d + np.sin(turned)[:, None] * w
+    remaining[paths] -= walked[last]
+    travelled[paths] += walked[last]
+    next_turn[paths] = turn_every[paths]
+
+
+def _bary_velocity(surface, triangle, direction) -> np.ndarray:
+    """Rate of change of the barycentric coordinates when moving along ``direction``."""
+    v12 = np.einsum("nij,nj->ni", surface.to_bary[triangle], direction)
+    return np.column_stack([-v12.sum(axis=1), v12])
 
 
 class _Recorder:
@@ -210,7 +270,7 @@ class _Recorder:
 
     def add(self, paths, order, kind, triangle, bary):
         if self.enabled and len(paths):
-            self.parts.append((paths, np.full(len(paths), order, dtype=np.int64),
+            self.parts.append((paths, np.broadcast_to(np.asarray(order, dtype=np.int64), (len(paths),)),
                                np.full(len(paths), kind, dtype=np.int8), triangle.copy(), bary.copy()))
 
     def finish(self, triangle, bary, direction, travelled) -> Trace:
