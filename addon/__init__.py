@@ -1,26 +1,43 @@
 """The Blender side of Scratch Iridescence: storage, operators, tools, overlay, panels, rendering.
 
 Modules that define Blender classes expose ``register()`` / ``unregister()``;
-they are listed here in registration order (property groups first).
+they are listed here in registration order (property groups first).  They are
+imported when the add-on registers, not when this package is imported: the
+Blender-free helpers next to them (``surface``, ``trace``, ``scatter``,
+``brush``, ``uvmap``, ``lines``, ``erase``, ``units``) must stay importable without ``bpy``
+so that tests and scripts can use them anywhere.
 """
 from __future__ import annotations
 
-from . import properties
-from .render import engine as render_engine
-from .render import export as render_export
-from .render import panels as render_panels
-from .render import settings as render_settings
+import importlib
 
-_MODULES = (properties, render_settings, render_engine, render_panels, render_export)
+# Module names relative to this package, in registration order.
+_MODULES = (
+    "properties",
+    "mesh",
+    "generate",
+    "files",
+    "paint",
+    "overlay",
+    "panels",
+    "render.settings",
+    "render.engine",
+    "render.panels",
+    "render.export",
+)
+
+
+def _modules():
+    return [importlib.import_module(f".{name}", __package__) for name in _MODULES]
 
 
 def register():
     """Register every class of the add-on."""
-    for module in _MODULES:
+    for module in _modules():
         module.register()
 
 
 def unregister():
     """Unregister in reverse order."""
-    for module in reversed(_MODULES):
+    for module in reversed(_modules()):
         module.unregister()

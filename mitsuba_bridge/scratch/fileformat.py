@@ -17,7 +17,7 @@ import numpy as np
 
 from .scratchset import FIELD_SPECS, ScratchFormatError, ScratchSet, validate_arrays
 
-__all__ = ["FORMAT", "FORMAT_VERSION", "load", "save", "loads", "dumps"]
+__all__ = ["FORMAT", "FORMAT_VERSION", "load", "save", "save_bytes", "loads", "dumps"]
 
 FORMAT_NAME = "scratch-iridescence"
 FORMAT_VERSION = 1
@@ -56,12 +56,29 @@ def save(scratches: ScratchSet, path, *, compress: bool = False) -> Path:
     ``compress=True`` writes ``np.savez_compressed`` (smaller, several times
     slower for large sets).  The path is used as given (no ``.npz`` is added).
     """
+    if not isinstance(scratches, ScratchSet):  # fail before creating any file
+        raise TypeError(f"expected a ScratchSet, got {type(scratches).__name__}")
+    return _write_atomically(path, lambda stream: _write(scratches, stream, compress))
+
+
+def save_bytes(data: bytes, path) -> Path:
+    """Write the bytes of a scratch file (from :func:`dumps`) to ``path`` atomically.
+
+    For callers that keep scratch files as bytes (the Blender add-on stores them
+    in the .blend): exporting is then writing those bytes, byte for byte.  The
+    bytes are written as given, not validated.
+    """
+    data = bytes(data)
+    return _write_atomically(path, lambda stream: stream.write(data))
+
+
+def _write_atomically(path, write) -> Path:
     path = Path(path)
     folder = path.parent if str(path.parent) else Path(".")
     handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
     try:
         with os.fdopen(handle, "wb") as stream:
-            _write(scratches, stream, compress)
+            write(stream)
             stream.flush()
             os.fsync(stream.fileno())
         os.replace(temporary, path)

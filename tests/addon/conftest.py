@@ -31,3 +31,28 @@ def plane(empty_scene):
     """A 2 m plane with the default UV map, active and selected."""
     bpy.ops.mesh.primitive_plane_add(size=2.0)
     return bpy.context.active_object
+
+
+@pytest.fixture
+def cube(empty_scene):
+    """Blender's default cube (2 m, UV unwrapped as a cross with seams), active and selected."""
+    bpy.ops.mesh.primitive_cube_add(size=2.0)
+    return bpy.context.active_object
+
+
+@pytest.fixture
+def scratched_plane(plane):
+    """The plane with 50 scratches already stored (to check that failed edits keep them)."""
+    from scratch_iridescence.addon import storage
+    from scratch_iridescence.mitsuba_bridge import scratch
+
+    storage.write_scratches(plane, scratch.random_scratches(50, seed=5, region=((0.1, 0.1), (0.9, 0.9)),
+                                                            length=(0.05, 0.1)))
+    return plane
+
+
+def stroke(points, starts=()):
+    """An operator ``stroke`` collection: world-space points, ``is_start`` at the given indices."""
+    return [{"name": "", "location": tuple(map(float, p)), "mouse": (0.0, 0.0), "mouse_event": (0.0, 0.0),
+             "pressure": 1.0, "size": 0.0, "x_tilt": 0.0, "y_tilt": 0.0, "time": float(i),
+             "is_start": i == 0 or i in starts} for i, p in enumerate(points)]

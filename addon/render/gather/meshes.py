@@ -10,16 +10,9 @@ from __future__ import annotations
 import numpy as np
 
 from ....mitsuba_bridge.scene import MeshData
+from ...mesh import scratch_uv_layer
 
-__all__ = ["mesh_parts", "active_uv_layer"]
-
-
-def active_uv_layer(mesh):
-    """The UV map that renders (Blender's camera icon), else the active one, else None."""
-    for layer in mesh.uv_layers:
-        if layer.active_render:
-            return layer
-    return mesh.uv_layers.active
+__all__ = ["mesh_parts"]
 
 
 def _read(collection, attribute: str, count: int, width: int, dtype) -> np.ndarray:
@@ -46,7 +39,7 @@ def mesh_parts(mesh, name: str) -> list[tuple[int, MeshData]]:
     normals = None
     if mesh.normals_domain != "FACE":
         normals = _read(mesh.corner_normals, "vector", loop_count, 3, np.float32)
-    uv_layer = active_uv_layer(mesh)
+    uv_layer = scratch_uv_layer(mesh)  # the UV map the editor paints scratches in (render UV, else active)
     uvs = _read(uv_layer.uv, "vector", loop_count, 2, np.float32) if uv_layer is not None else None
 
     used = np.unique(slots)

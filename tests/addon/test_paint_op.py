@@ -1,0 +1,225 @@
+"""The brushes replayed from ``stroke`` collections: pen, spray, seams, gaps, eraser, errors, undo."""
+import numpy as np
+import pytest
+
+bpy = pytest.importorskip("bpy")
+from conftest import stroke  # noqa: E402
+from scratch_iridescence.addon import storage  # noqa: E402
+from scratch_iridescence.addon.mesh import world_surface  # noqa: E402
+from scratch_iridescence.addon.uvmap import UVLocator  # noqa: E402
+from scratch_iridescence.mitsuba_bridge.scratch import ScratchSet  # noqa: E402
+
+
+def paint(points, starts=(), **kwargs):
+    kwargs.setdefault("seed", 1)
+    return bpy.ops.scratch.paint_stroke("EXEC_DEFAULT", True, stroke=stroke(points, starts), **kwargs)
+
+
+def erase(points, **kwargs):
+    return bpy.ops.scratch.erase_stroke("EXEC_DEFAULT", True, stroke=stroke(points), **kwargs)
+
+
+def plane_points(scratches):
+    """3D points of the 2 m plane's scratch vertices (UV [0, 1]² covers x, y in [-1, 1])."""
+    return np.column_stack([2 * scratches.uv - 1, np.zeros(scratches.vertex_count)])
+
+
+def distance_to_polyline(points, path):
+    a, b = path[:-1], path[1:]
+    ab = b - a
+    result = []
+    for p in np.atleast_2d(points):
+        t = np.clip(np.einsum("ni,ni->n", p - a, ab) / np.maximum(np.einsum("ni,ni->n", ab, ab), 1e-300), 0, 1)
+        result.append(np.linalg.norm(a + t[:, None] * ab - p, axis=1).min())
+    return np.array(result)
+
+
+def test01_pen_paints_one_scratch_through_the_stroke(plane):
+    points = np.column_stack([np.linspace(-0.8, 0.6, 15), 0.3 * np.sin(np.linspace(0, 3, 15)), np.zeros(15)])
+    assert paint(points, depth_distribution="UNIFORM", depth_min=200.0, depth_max=300.0) == {"FINISHED"}
+    scratches = storage.read_scratches(plane)
+    assert scratches.count == 1
+    np.testing.assert_allclose(plane_points(scratches), points, atol=1e-6)
+    assert 200e-9 <= scratches.depth[0] <= 300e-9
+
+
+def test02_points_near_the_surface_are_snapped_onto_it(plane):
+    points = np.column_stack([np.linspace(-0.5, 0.5, 6), np.zeros(6), np.full(6, 0.003)])
+    paint(points)
+    np.testing.assert_allclose(plane_points(storage.read_scratches(plane)), points * [1, 1, 0], atol=1e-6)
+
+
+def test03_points_off_the_surface_split_the_stroke(plane):
+    points = np.column_stack([np.linspace(-0.8, 0.8, 9), np.zeros(9), np.zeros(9)])
+    points[4, 2] = 1.0  # lifted far above the plane: missed
+    points[5, 0] = 5.0  # beside the plane: missed
+    paint(points)
+    scratches = storage.read_scratches(plane)
+    assert scratches.count == 2
+    assert list(scratches.vertex_counts) == [4, 3]
+
+
+def test04_is_start_begins_a_new_scratch(plane):
+    points = np.column_stack([np.linspace(-0.8, 0.8, 8), np.zeros(8), np.zeros(8)])
+    paint(points, starts=(4,))
+    assert storage.read_scratches(plane).count == 2
+
+
+def cube_seam_stroke(cube, seam: bool):
+    """Points crossing a cube edge that is (or is not) a UV seam, 0.6 m into each face."""
+    surface = world_surface(cube, bpy.context.evaluated_depsgraph_get())
+    t, k = np.argwhere((surface.neighbour >= 0) & (surface.seam == seam) & ~surface.flat)[0]
+    other, other_k = surface.neighbour[t, k], surface.neighbour_edge[t, k]
+    a, b = surface.corners[t, (k + 1) % 3], surface.corners[t, (k + 2) % 3]
+    middle = 0.5 * (a + b)
+    into_here, into_there = -surface.edge_out[t, k], -surface.edge_out[other, other_k]
+    offsets = np.linspace(0.6, 0.05, 6)
+    points = np.vstack([middle + s * into_here for s in offsets]
+                       + [middle + s * into_there for s in offsets[::-1]])
+    return surface, points, middle
+
+
+@pytest.mark.parametrize("seam", [True, False])
+def test05_pen_across_a_cube_edge(cube, seam):
+    surface, points, middle = cube_seam_stroke(cube, seam)
+    paint(points)
+    scratches = storage.read_scratches(cube)
+    assert scratches.count == (2 if seam else 1)
+    triangle, bary = UVLocator(surface.uv).locate(scratches.uv)
+    assert np.all(triangle >= 0)
+    on_surface = surface.point(triangle, bary)
+    path = np.vstack([points[:6], middle, points[6:]])
+    assert distance_to_polyline(on_surface, path).max() < 1e-5  # every scratch stays on the stroke's path
+    for i in range(scratches.count):  # and each is continuous in UV: UV steps = surface steps / 8
+        uv = scratches.polyline(i)
+        p = on_surface[scratches.offsets[i]:scratches.offsets[i + 1]]
+        np.testing.assert_allclose(np.linalg.norm(np.diff(uv, axis=0), axis=1),
+                                   np.linalg.norm(np.diff(p, axis=0), axis=1) / 8, rtol=1e-5, atol=1e-7)
+    total = sum(np.linalg.norm(np.diff(on_surface[a:b], axis=0), axis=1).sum()
+                for a, b in zip(scratches.offsets[:-1], scratches.offsets[1:]))
+    assert total == pytest.approx(1.2, rel=1e-5)
+
+
+def test06_spray_scatters_around_the_stroke(plane):
+    points = np.column_stack([np.linspace(-0.5, 0.5, 30), np.zeros(30), np.zeros(30)])
+    radius, jitter = 0.05, np.radians(10)
+    paint(points, brush_mode="SPRAY", radius=radius, density=10.0, jitter=jitter, length_min=0.01,
+          length_max=0.02)
+    scratches = storage.read_scratches(plane)
+    expected = 10.0 * (1.0 / radius + 1)
+    assert abs(scratches.count - expected) < 5 * np.sqrt(expected)
+    p = plane_points(scratches)
+    centre = 0.5 * (p[scratches.offsets[:-1]] + p[scratches.offsets[1:] - 1])
+    assert distance_to_polyline(centre, points).max() <= radius + 1e-6
+    chord = p[scratches.offsets[1:] - 1] - p[scratches.offsets[:-1]]
+    heading = np.arctan2(chord[:, 1], chord[:, 0])
+    heading = np.mod(heading + np.pi / 2, np.pi) - np.pi / 2  # a scratch has no head or tail
+    assert np.abs(heading).max() <= jitter + 1e-6
+
+
+def test07_spray_click_sprays_a_dab(plane):
+    paint([(0.2, 0.1, 0.0)], brush_mode="SPRAY", radius=0.1, density=40.0)
+    scratches = storage.read_scratches(plane)
+    assert 15 < scratches.count < 70
+
+
+def test07b_absurd_spray_density_is_refused(scratched_plane):
+    before = storage.raw_scratch_bytes(scratched_plane)
+    with pytest.raises(RuntimeError, match="Spraying about .* needs about .* GiB"):
+        paint([(-0.5, 0.0, 0.0), (0.5, 0.0, 0.0)], brush_mode="SPRAY", radius=1e-6, density=1e6)
+    assert storage.raw_scratch_bytes(scratched_plane) == before
+
+
+def test08_stroke_entirely_off_the_mesh(scratched_plane):
+    before = storage.raw_scratch_bytes(scratched_plane)
+    with pytest.raises(RuntimeError, match="The stroke misses 'Plane'"):
+        paint([(5.0, 5.0, 0.0), (6.0, 5.0, 0.0)])
+    with pytest.raises(RuntimeError, match="The stroke misses"):
+        erase([(0.0, 0.0, 3.0)])
+    with pytest.raises(RuntimeError, match="The stroke is empty"):
+        paint([])
+    assert storage.raw_scratch_bytes(scratched_plane) == before
+
+
+def test09_a_single_pen_point_paints_nothing(scratched_plane):
+    before = storage.raw_scratch_bytes(scratched_plane)
+    assert paint([(0.1, 0.1, 0.0)]) == {"CANCELLED"}
+    assert storage.raw_scratch_bytes(scratched_plane) == before
+
+
+def test10_brushes_refuse_bad_objects(empty_scene):
+    bpy.ops.object.empty_add()
+    with pytest.raises(RuntimeError, match="mesh objects"):
+        paint([(0, 0, 0), (1, 0, 0)])
+    with pytest.raises(RuntimeError, match="mesh objects"):
+        erase([(0, 0, 0), (1, 0, 0)])
+    bpy.ops.mesh.primitive_plane_add()
+    mesh = bpy.context.active_object.data
+    mesh.uv_layers.remove(mesh.uv_layers[0])
+    mesh.update()
+    with pytest.raises(RuntimeError, match="no UV map"):
+        paint([(0, 0, 0), (0.5, 0, 0)])
+
+
+def test11_eraser_removes_exactly_the_scratches_under_the_stroke(plane):
+    rng = np.random.default_rng(4)
+    a = rng.uniform(0.05, 0.95, (300, 2))
+    b = a + rng.normal(0, 0.03, (300, 2))
+    scratches = ScratchSet.from_polylines([np.array([p, q]) for p, q in zip(a, np.clip(b, 0, 1))],
+                                          width=1e-6, depth=1e-7)
+    storage.write_scratches(plane, scratches)
+    stroke_points = np.column_stack([np.linspace(-0.7, 0.7, 8), np.linspace(-0.3, 0.4, 8), np.zeros(8)])
+    radius = 0.08
+    assert erase(stroke_points, radius=radius, erase_mode="WHOLE") == {"FINISHED"}
+    # Independent check on the plane's exact geometry: sampled segment-to-stroke distances.
+    p = plane_points(scratches)
+    distance = np.array([distance_to_polyline(np.linspace(p[2 * i], p[2 * i + 1], 200), stroke_points).min()
+                         for i in range(300)])
+    kept = storage.read_scratches(plane)
+    survivors = {tuple(x) for x in kept.uv.reshape(-1, 4).round(12).tolist()}
+    was_kept = np.array([tuple(scratches.polyline(i).reshape(-1).round(12)) in survivors for i in range(300)])
+    assert kept == scratches.select(was_kept)  # the others untouched, in order
+    expected_kept = distance > radius
+    assert 10 < (~expected_kept).sum() < 290
+    clear = np.abs(distance - radius) > 0.01 * radius  # the sampled check is exact up to 1 %
+    assert np.array_equal(was_kept[clear], expected_kept[clear])
+
+
+def test12_cutting_eraser_removes_only_what_is_under_the_brush(plane):
+    line = ScratchSet.from_polylines([np.array([[0.1, 0.5], [0.9, 0.5]]), np.array([[0.1, 0.1], [0.2, 0.1]])],
+                                     width=[1e-6, 2e-6], depth=1e-7, depth_variation=(1.1, 0.04), seed=[3, 4])
+    storage.write_scratches(plane, line)  # in 3D: y = 0, x from -0.8 to 0.8; and a short one far away
+    radius = 0.1
+    assert erase([(0.0, -0.5, 0.0), (0.0, 0.5, 0.0)], radius=radius) == {"FINISHED"}
+    result = storage.read_scratches(plane)
+    assert result.count == 3
+    assert result.select([0]) == line.select([1])  # untouched, unchanged
+    left, right = plane_points(result.select([1])), plane_points(result.select([2]))
+    np.testing.assert_allclose([left[0, 0], right[-1, 0]], [-0.8, 0.8], atol=1e-9)
+    assert -1.25 * radius <= left[-1, 0] <= -radius + 1e-9 and radius - 1e-9 <= right[0, 0] <= 1.25 * radius
+    assert np.all(result.width[1:] == 1e-6) and len(set(result.seed)) == 3
+    np.testing.assert_allclose(result.depth_variation[1:, 1].sum(), 0.04 * (1 - 2 * radius / 1.6), rtol=0.05)
+
+
+def test13_erasing_nothing_changes_nothing(scratched_plane):
+    before = storage.raw_scratch_bytes(scratched_plane)
+    assert erase([(0.99, 0.99, 0.0)], radius=0.001) == {"CANCELLED"}
+    assert storage.raw_scratch_bytes(scratched_plane) == before
+
+
+def test14_paint_and_erase_undo(scratched_plane):
+    bpy.ops.ed.undo_push(message="before")
+    before = storage.raw_scratch_bytes(scratched_plane)
+    paint([(-0.5, 0.0, 0.0), (0.5, 0.0, 0.0)])
+    painted = storage.raw_scratch_bytes(bpy.data.objects["Plane"])
+    erase([(-1.0, 0.0, 0.0), (1.0, 0.0, 0.0)], radius=0.5)
+    bpy.ops.ed.undo()
+    assert storage.raw_scratch_bytes(bpy.data.objects["Plane"]) == painted
+    bpy.ops.ed.undo()
+    assert storage.raw_scratch_bytes(bpy.data.objects["Plane"]) == before
+
+
+def test15_invoke_without_a_viewport_replays_the_stroke(plane):
+    points = [(-0.5, 0.2, 0.0), (0.5, 0.2, 0.0)]
+    bpy.ops.scratch.paint_stroke("INVOKE_DEFAULT", stroke=stroke(points), seed=3)
+    assert storage.read_scratches(plane).count == 1
