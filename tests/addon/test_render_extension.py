@@ -1,7 +1,7 @@
 """The built Linux extension zip installs into a sandboxed Blender user folder, enables and renders.
 
-Slow: builds the zips first when ``dist/`` has none (``make extension``; the
-first build downloads about 300 MB of wheels into ``wheels/``).
+Slow: builds the zips from the current tree first (as ``make extension`` does; the first
+build downloads about 300 MB of wheels into ``wheels/``).
 """
 import subprocess
 import sys
@@ -50,18 +50,18 @@ print("MITSUBA", mitsuba.__file__)
 """
 
 
-def linux_zip() -> Path:
+def linux_zip(output: Path) -> Path:
+    """Build the zips from the current tree (wheels are downloaded once into wheels/, then reused)."""
+    subprocess.run([sys.executable, str(ROOT / "tools" / "build_extension.py"), "--output-dir", str(output)],
+                   check=True, cwd=ROOT)
     manifest = tomllib.loads((ROOT / "blender_manifest.toml").read_text())
-    path = ROOT / "dist" / f"{manifest['id']}-{manifest['version']}-linux_x64.zip"
-    if not path.is_file():
-        subprocess.run([sys.executable, str(ROOT / "tools" / "build_extension.py")], check=True, cwd=ROOT)
-    return path
+    return output / f"{manifest['id']}-{manifest['version']}-linux_x64.zip"
 
 
 @pytest.mark.slow
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="installs the Linux x64 zip")
 def test_linux_zip_installs_enables_and_renders_with_its_own_wheels(tmp_path):
-    zip_path = linux_zip()
+    zip_path = linux_zip(tmp_path / "dist")
     sandbox = tmp_path / "blender-user"
     output = tmp_path / "frame.png"
     env = {"BLENDER_USER_RESOURCES": str(sandbox), "PATH": "/usr/bin:/bin", "HOME": str(tmp_path),
