@@ -42,6 +42,23 @@ def material(name, shader="ShaderNodeBsdfDiffuse", **inputs):
     return mat
 
 
+def textured(name, image):
+    """A Diffuse material whose colour comes from an Image Texture node showing ``image``; returns (material, node)."""
+    mat = material(name)
+    node = mat.node_tree.nodes.new("ShaderNodeTexImage")
+    node.image = image
+    mat.node_tree.links.new(node.outputs["Color"], mat.node_tree.nodes["Diffuse BSDF"].inputs["Color"])
+    return mat, node
+
+
+def missing_image(path, name="gone"):
+    """An image datablock pointing at a file that does not exist."""
+    image = bpy.data.images.new(name, 2, 2)
+    image.source = "FILE"
+    image.filepath = str(path)
+    return image
+
+
 def emission(name="Glow", colour=(1, 1, 1, 1), strength=1.0):
     return material(name, "ShaderNodeEmission", Color=colour, Strength=strength)
 

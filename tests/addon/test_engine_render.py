@@ -9,7 +9,7 @@ import pytest
 
 bpy = pytest.importorskip("bpy")
 from render_scenes import (add_camera, add_light, add_plane, blender_pixel, bright_centroid, emission,  # noqa: E402
-                           material, render_to, set_world, setup_render)
+                           material, missing_image, render_to, set_world, setup_render, textured)
 from scratch_iridescence.addon.render.frame import render_frame  # noqa: E402
 from scratch_iridescence.mitsuba_bridge.exr import read_exr  # noqa: E402
 
@@ -308,13 +308,7 @@ def test_asking_for_a_missing_gpu_is_a_clear_error(lit, tmp_path):
 def test_missing_texture_renders_magenta_with_a_warning(recording, empty_scene, tmp_path):
     setup_render(empty_scene, engine=RecordingEngine.bl_idname, samples=8)
     add_camera(empty_scene)
-    mat = material("Lost")
-    node = mat.node_tree.nodes.new("ShaderNodeTexImage")
-    node.image = bpy.data.images.new("gone", 2, 2)
-    node.image.source = "FILE"
-    node.image.filepath = str(tmp_path / "gone.png")
-    mat.node_tree.links.new(node.outputs["Color"], mat.node_tree.nodes["Diffuse BSDF"].inputs["Color"])
-    add_plane(empty_scene, size=6, mat=mat)
+    add_plane(empty_scene, size=6, mat=textured("Lost", missing_image(tmp_path / "gone.png"))[0])
     set_world(empty_scene, (1, 1, 1))
     red, green, blue = render_to(empty_scene, tmp_path / "lost.exr")[..., :3].mean(axis=(0, 1))
     assert red > 0.5 and blue > 0.5 and green < 0.1 * red

@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 bpy = pytest.importorskip("bpy")
-from render_scenes import add_camera, add_light, add_plane, material, radians, set_world  # noqa: E402
+from render_scenes import (add_camera, add_light, add_plane, material, missing_image, radians,  # noqa: E402
+                           set_world, textured)
 from scratch_iridescence.addon import storage  # noqa: E402
 from scratch_iridescence.addon.render.gather import GatherError, gather_scene  # noqa: E402
 from scratch_iridescence.mitsuba_bridge import scene as S  # noqa: E402
@@ -260,11 +261,8 @@ def test_unsupported_input_node_keeps_the_inputs_value_and_warns(staged):
 def test_image_textures_from_files_and_packed_pixels(staged, tmp_path):
     image = bpy.data.images.new("Painted", 4, 2)
     image.pixels.foreach_set(np.tile([1.0, 0.0, 0.0, 1.0], 8).astype(np.float32))
-    mat = material("Tex")
-    node = mat.node_tree.nodes.new("ShaderNodeTexImage")
-    node.image = image
+    mat, node = textured("Tex", image)
     node.interpolation = "Closest"
-    mat.node_tree.links.new(node.outputs["Color"], mat.node_tree.nodes["Diffuse BSDF"].inputs["Color"])
     add_plane(staged, mat=mat)
     texture = gather(staged).materials["material:Tex"].reflectance
     assert isinstance(texture, S.Texture) and texture.path is None
@@ -280,12 +278,7 @@ def test_image_textures_from_files_and_packed_pixels(staged, tmp_path):
 
 
 def test_missing_texture_renders_magenta_with_a_warning(staged, tmp_path):
-    mat = material("Lost")
-    node = mat.node_tree.nodes.new("ShaderNodeTexImage")
-    node.image = bpy.data.images.new("gone", 2, 2)
-    node.image.source = "FILE"
-    node.image.filepath = str(tmp_path / "gone.png")
-    mat.node_tree.links.new(node.outputs["Color"], mat.node_tree.nodes["Diffuse BSDF"].inputs["Color"])
+    mat, _ = textured("Lost", missing_image(tmp_path / "gone.png"))
     add_plane(staged, mat=mat)
     description = gather(staged)
     texture = description.materials["material:Lost"].reflectance
@@ -294,10 +287,7 @@ def test_missing_texture_renders_magenta_with_a_warning(staged, tmp_path):
 
 
 def test_textured_object_without_uvs_warns(staged):
-    mat = material("Tex")
-    node = mat.node_tree.nodes.new("ShaderNodeTexImage")
-    node.image = bpy.data.images.new("img", 2, 2)
-    mat.node_tree.links.new(node.outputs["Color"], mat.node_tree.nodes["Diffuse BSDF"].inputs["Color"])
+    mat, _ = textured("Tex", bpy.data.images.new("img", 2, 2))
     plane = add_plane(staged, mat=mat)
     plane.data.uv_layers.remove(plane.data.uv_layers[0])
     description = gather(staged)

@@ -7,37 +7,33 @@ import numpy as np
 import pytest
 
 bpy = pytest.importorskip("bpy")
-from render_scenes import add_camera, add_light, add_plane, emission, material, render_to, setup_render  # noqa: E402
+from render_scenes import add_camera, add_light, add_plane, emission, render_to, setup_render, textured  # noqa: E402
 from scratch_iridescence.mitsuba_bridge.exr import read_exr, write_exr  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture
-def textured(empty_scene, tmp_path):
+def striped_scene(empty_scene, tmp_path):
     setup_render(empty_scene, 40, 30, samples=16)
     add_camera(empty_scene, location=(0.2, -0.1, 5), lens=40)
     write_exr(tmp_path / "stripes.exr", np.kron(np.arange(4) % 2, np.ones(4))[None, :, None].repeat(8, 0)
               * np.ones(3, np.float32))
-    mat = material("Striped")
-    node = mat.node_tree.nodes.new("ShaderNodeTexImage")
-    node.image = bpy.data.images.load(str(tmp_path / "stripes.exr"))
-    mat.node_tree.links.new(node.outputs["Color"], mat.node_tree.nodes["Diffuse BSDF"].inputs["Color"])
-    add_plane(empty_scene, size=3, mat=mat)
+    add_plane(empty_scene, size=3, mat=textured("Striped", bpy.data.images.load(str(tmp_path / "stripes.exr")))[0])
     add_plane(empty_scene, size=0.4, location=(1, 1, 0.5), mat=emission(strength=4), name="Lamp")
     add_light(empty_scene, "SUN", energy=2)
     return empty_scene
 
 
-def test_export_writes_a_self_contained_folder(textured, tmp_path):
+def test_export_writes_a_self_contained_folder(striped_scene, tmp_path):
     assert bpy.ops.scratch.export_mitsuba(directory=str(tmp_path / "scene")) == {"FINISHED"}
     files = sorted(str(p.relative_to(tmp_path / "scene")) for p in (tmp_path / "scene").rglob("*") if p.is_file())
     assert files == ["meshes/Lamp.ply", "meshes/Plane.ply", "scene.xml", "textures/stripes.exr"]
 
 
-def test_command_line_render_of_the_export_matches_the_engine(textured, tmp_path):
-    textured.scratch_render.samples = 128
-    engine_image = render_to(textured, tmp_path / "engine.exr")
+def test_command_line_render_of_the_export_matches_the_engine(striped_scene, tmp_path):
+    striped_scene.scratch_render.samples = 128
+    engine_image = render_to(striped_scene, tmp_path / "engine.exr")
     bpy.ops.scratch.export_mitsuba(directory=str(tmp_path / "scene"))
     result = subprocess.run([sys.executable, "-m", "mitsuba_bridge", "render", str(tmp_path / "scene"),
                              "-o", str(tmp_path / "cli.exr")], capture_output=True, text=True, cwd=ROOT)
