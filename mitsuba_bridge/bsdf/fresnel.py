@@ -55,7 +55,7 @@ def material_textures(name: str):
 
     paths = [str(mi.file_resolver().resolve(f"data/ior/{name}.{part}.spd")) for part in ("eta", "k")]
     if not all(os.path.isfile(p) for p in paths):
-        folder = os.path.dirname(paths[0])
+        folder = os.path.dirname(str(mi.file_resolver().resolve("data/ior/Al.eta.spd")))
         known = sorted({f.split(".")[0] for f in os.listdir(folder) if f.endswith(".k.spd")}) \
             if os.path.isdir(folder) else []
         raise ValueError(

@@ -1,6 +1,6 @@
 """Finding the segments inside a shading point's coherence window (Dr.Jit side).
 
-:func:`for_each_segment` runs symbolic ``dr.while_loop``\ s over the grid of
+:func:`for_each_segment` runs nested symbolic ``dr.while_loop`` calls over the grid of
 :mod:`.tables`: over the rows of cells that the window's UV bounding box
 (padded by half a cell, the pieces' reach beyond their cell) touches, each row
 being one contiguous range of the sorted segment table.  Pieces whose centre

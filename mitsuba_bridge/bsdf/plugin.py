@@ -118,8 +118,8 @@ def _check_variant() -> None:
 
 def _read_scratches(props):
     """The scratch set named by the properties (file or in-memory keys), validated."""
-    in_memory = [key for key in memory.KEYS if props.has_property(key)]
-    filename = props.get("filename", "") if props.has_property("filename") else ""
+    in_memory = [key for key in memory.KEYS if key in props]
+    filename = props.get("filename", "")
     if filename and in_memory:
         raise ValueError("give either 'filename' or the in-memory keys scratch_*, not both")
     if filename:
@@ -136,7 +136,7 @@ def _read_scratches(props):
 
 
 def _positive(props, name, default):
-    value = float(props.get(name, default)) if props.has_property(name) else float(default)
+    value = float(props.get(name, default))
     if not value > 0.0 or value == float("inf"):
         raise ValueError(f"parameter '{name}' must be a positive length in metres, got {value!r}")
     return value
@@ -160,24 +160,22 @@ def _make_class() -> type:
             self.coherence_diameter = dr.opaque(mi.Float, _positive(
                 props, "coherence_diameter", parameters.DEFAULT_COHERENCE_DIAMETER_M))
             self.unit_scale = dr.opaque(mi.Float, _positive(props, "unit_scale", 1.0))
-            self.cell_size = float(props.get("cell_size", 0.0)) if props.has_property("cell_size") else 0.0
-            self.coherent = bool(props.get("coherent", True)) if props.has_property("coherent") else True
+            self.cell_size = float(props.get("cell_size", 0.0))
+            self.coherent = bool(props.get("coherent", True))
 
-            has_eta, has_k = props.has_property("eta"), props.has_property("k")
+            has_eta, has_k = "eta" in props, "k" in props
             if has_eta != has_k:
                 raise ValueError("parameters 'eta' and 'k' go together")
-            if has_eta and props.has_property("material"):
+            if has_eta and "material" in props:
                 raise ValueError("give either 'material' or 'eta' and 'k', not both")
             if has_eta:
                 self.eta, self.k = props.get_texture("eta"), props.get_texture("k")
                 self.material = "custom"
             else:
-                self.material = str(props.get("material", parameters.DEFAULT_MATERIAL)) \
-                    if props.has_property("material") else parameters.DEFAULT_MATERIAL
+                self.material = str(props.get("material", parameters.DEFAULT_MATERIAL))
                 self.eta, self.k = (None, None) if self.material.lower() == "none" \
                     else material_textures(self.material)
-            self.diffuse = props.get_texture("diffuse_reflectance") \
-                if props.has_property("diffuse_reflectance") else None
+            self.diffuse = props.get_texture("diffuse_reflectance") if "diffuse_reflectance" in props else None
 
             glossy = mi.BSDFFlags.GlossyReflection | mi.BSDFFlags.FrontSide
             diffuse = mi.BSDFFlags.DiffuseReflection | mi.BSDFFlags.FrontSide

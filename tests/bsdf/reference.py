@@ -135,3 +135,44 @@ def directions(xi, wavelength, wi):
 
 def kz_of(wo, wi, wavelength):
     return 2 * np.pi * (wi[2] + wo[:, 2]) / wavelength
+
+
+# ------------------------------------------------------------------------------
+# The analytic models of MODEL.md §3 that the plugin improves on, for comparison
+def _phi_difference(t0, t1, nu, sigma):
+    """Φ(t1; ν) - Φ(t0; ν) through scipy's Faddeeva function (numpy, exact)."""
+    from scipy.special import wofz
+
+    def end(t):
+        s = np.where(t >= 0, -1.0, 1.0)
+        b = 2 * np.pi * nu * sigma ** 2
+        w = wofz((s * b + 1j * np.abs(t)) / (np.sqrt(2) * sigma))
+        g = np.exp(-0.5 * (t / sigma) ** 2 - 2j * np.pi * nu * t)
+        return s * g * w + 2 * np.exp(-2 * np.pi ** 2 * sigma ** 2 * nu ** 2) * (t >= 0)
+
+    return np.sqrt(np.pi / 2) * sigma * (end(t1) - end(t0))
+
+
+def _cross_section_model(s, nu, kappa):
+    """G(ν) of MODEL.md §3.1 (ν may be complex)."""
+    w = s.width
+    if s.profile == RECT:
+        return (np.exp(1j * kappa) - 1) * w * np.sinc(w * nu)
+    half = np.exp(0.5j * kappa) * 0.5 * w
+    return half * (np.exp(0.5j * np.pi * nu * w) * np.sinc(kappa / (2 * np.pi) - nu * w / 2)
+                   + np.exp(-0.5j * np.pi * nu * w) * np.sinc(kappa / (2 * np.pi) + nu * w / 2)) \
+        - w * np.sinc(w * nu)
+
+
+def field_separable_model(scratches, xi, k_z, sigma, complex_shift):
+    """U(ξ) of MODEL.md §3: the window frozen across each scratch (plain, ``complex_shift=False``)
+    or linearised across it (MODEL.md's complex-frequency correction)."""
+    total = 2 * np.pi * sigma ** 2 * np.exp(-2 * np.pi ** 2 * sigma ** 2 * np.sum(xi ** 2, axis=1)) + 0j
+    for s in scratches:
+        a, length, d, n = s.frame()
+        c, a_perp = a @ d, a @ n
+        nu_par, nu_perp = xi @ d, xi @ n
+        shift = a_perp / (2 * np.pi * sigma ** 2) if complex_shift else 0.0
+        total += (np.exp(-2j * np.pi * nu_perp * a_perp) * _phi_difference(c, c + length, nu_par, sigma)
+                  * np.exp(-0.5 * (a_perp / sigma) ** 2) * _cross_section_model(s, nu_perp - 1j * shift, k_z * s.depth))
+    return total

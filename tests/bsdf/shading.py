@@ -30,32 +30,43 @@ def scratch_set(scratches) -> ScratchSet:
         profile=[Profile.TRIANGULAR if s.profile == 1 else Profile.RECTANGULAR for s in scratches])
 
 
-def load_bsdf(scratches=None, *, sigma_um=2.0, material="none", **kwargs):
-    """A scratch_diffraction BSDF for the test surface."""
+def load_bsdf(scratches=None, *, sigma_um=2.0, material="none", unit_scale=UNIT_SCALE, **kwargs):
+    """A scratch_diffraction BSDF for the test surface (scratches in µm around x0, or a ScratchSet)."""
     if scratches is not None and not isinstance(scratches, ScratchSet):
         scratches = scratch_set(scratches)
     return mi.load_dict(scratch_bsdf.plugin_dict(
-        scratches, coherence_diameter=6 * sigma_um * 1e-6, unit_scale=UNIT_SCALE, material=material,
+        scratches, coherence_diameter=6 * sigma_um * 1e-6, unit_scale=unit_scale, material=material,
         **kwargs))
+
+
+def floats(values) -> mi.Float:
+    """A Dr.Jit-owned (so always equally aligned) copy of ``values``.
+
+    Arrays built straight from numpy may alias numpy's memory, whose alignment
+    changes the generated code: a kernel-cache test would see spurious misses.
+    """
+    array = mi.Float(np.ascontiguousarray(values, dtype=np.float32).ravel()) + dr.opaque(mi.Float, 0.0)
+    dr.eval(array)
+    return array
 
 
 def interaction(count, wi, wavelengths_nm=(550, 600, 450, 650), uv=X0_UV):
     """A SurfaceInteraction3f of ``count`` lanes on the test surface."""
     si = dr.zeros(mi.SurfaceInteraction3f, count)
-    si.uv = mi.Point2f(*(mi.Float(np.broadcast_to(np.asarray(c, np.float32), count).copy()) for c in uv))
+    si.uv = mi.Point2f(*(floats(np.broadcast_to(np.asarray(c, np.float32), count)) for c in uv))
     si.dp_du = mi.Vector3f(1, 0, 0)
     si.dp_dv = mi.Vector3f(0, 1, 0)
     si.n = mi.Normal3f(0, 0, 1)
     si.sh_frame = mi.Frame3f(mi.Vector3f(1, 0, 0), mi.Vector3f(0, 1, 0), mi.Vector3f(0, 0, 1))
     si.wi = vector(np.broadcast_to(np.asarray(wi, np.float64), (count, 3)))
     wl = np.broadcast_to(np.asarray(wavelengths_nm, np.float64), (count, 4))
-    si.wavelengths = mi.Spectrum(*(mi.Float(wl[:, i].copy()) for i in range(4)))
+    si.wavelengths = mi.Spectrum(*(floats(wl[:, i]) for i in range(4)))
     return si
 
 
 def vector(rows):
     rows = np.asarray(rows, dtype=np.float64)
-    return mi.Vector3f(*(mi.Float(rows[:, i].copy()) for i in range(3)))
+    return mi.Vector3f(*(floats(rows[:, i]) for i in range(3)))
 
 
 def spectrum_rows(value) -> np.ndarray:
