@@ -102,8 +102,9 @@ class Model:
                     a, b = spectrum(a + s.abs2()), b + sampling.window_energy(segment, sigma)
             if want_pdf and has_glossy:
                 weight = sampling.selection_weight(segment, kz0 * segment.depth, sigma, coherent)
-                energy += weight
-                density += weight * self._scratch_density(segment, xi0_x, xi0_y, wi, lam0, kz0)
+                # (never in place: the inputs of a symbolic branch must stay untouched)
+                energy = energy + weight
+                density = density + weight * self._scratch_density(segment, xi0_x, xi0_y, wi, lam0, kz0)
             return (a, b), energy, density
 
         (a, b), energy, density = for_each_segment(
@@ -146,9 +147,9 @@ class Model:
                 intensity = lobe * lobe * (1.0 - covered) + a
             half = dr.normalize(si.wi + wo)
             fresnel = self._reflectance(si, dr.dot(si.wi, half), active)
-            value += fresnel * intensity / (wavelength * wavelength * (math.pi * sigma * sigma))
+            value = value + fresnel * intensity / (wavelength * wavelength * (math.pi * sigma * sigma))
         if has_diffuse and self.diffuse is not None:
-            value += self.diffuse.eval(si, active) * (1.0 / math.pi)
+            value = value + self.diffuse.eval(si, active) * (1.0 / math.pi)
         value = dr.select(active, value * wo.z, 0.0)
         return dr.select(dr.isfinite(value), value, 0.0)
 

@@ -63,7 +63,7 @@ def selection_weight(segment: SegmentGeometry, kappa, sigma, coherent: bool):
     if coherent:
         energy = dr.select(segment.triangular, profiles.energy_triangular(kappa),
                            profiles.energy_rectangular(kappa))
-        energy += ENERGY_FLOOR * dr.minimum(kappa * kappa, 1.0)
+        energy = energy + ENERGY_FLOOR * dr.minimum(kappa * kappa, 1.0)
     else:
         energy = 1.0
     return window_energy(segment, sigma) * energy
@@ -124,6 +124,6 @@ def pdf_across(nu, segment: SegmentGeometry, kappa, lo, hi):
     for centre, scale, weight in _across_components(segment, kappa):
         a, b = _truncated_cauchy_bounds(centre, scale, lo, hi)
         density = scale / (dr.maximum(b - a, 1e-12) * (dr.square(nu - centre) + scale * scale))
-        result += weight * density
+        result = result + weight * density
     inside = (nu >= lo) & (nu <= hi)
     return dr.select(inside, result, 0.0)

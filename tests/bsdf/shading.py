@@ -85,3 +85,15 @@ def eval_brdf(bsdf, wi, wo_rows, wavelengths_nm=(550, 600, 450, 650)):
     si = interaction(len(wo_rows), wi, wavelengths_nm)
     value = bsdf.eval(mi.BSDFContext(), si, vector(wo_rows))
     return spectrum_rows(value) / wo_rows[:, 2:3]
+
+
+def uniform_interaction(count, wi, wavelengths_nm=(550, 600, 450, 650), uv=X0_UV):
+    """Like :func:`interaction`, built from scalars only (any width, e.g. inside a chi² adapter)."""
+    si = dr.zeros(mi.SurfaceInteraction3f, count)
+    si.uv = mi.Point2f(float(uv[0]), float(uv[1]))
+    si.dp_du, si.dp_dv = mi.Vector3f(1, 0, 0), mi.Vector3f(0, 1, 0)
+    si.n = mi.Normal3f(0, 0, 1)
+    si.sh_frame = mi.Frame3f(mi.Vector3f(1, 0, 0), mi.Vector3f(0, 1, 0), mi.Vector3f(0, 0, 1))
+    si.wi = mi.Vector3f(*map(float, wi))
+    si.wavelengths = mi.Spectrum(*map(float, wavelengths_nm))
+    return si
