@@ -38,14 +38,26 @@ class Grid:
     @classmethod
     def upload(cls, tables: GridTables) -> "Grid":
         return cls(
-            segments=mi.Float(tables.segments.ravel()),
-            cell_start=mi.UInt32(tables.cell_start),
+            segments=_owned(mi.Float, tables.segments.ravel()),
+            cell_start=_owned(mi.UInt32, tables.cell_start),
             origin_u=dr.opaque(mi.Float, tables.origin[0]),
             origin_v=dr.opaque(mi.Float, tables.origin[1]),
             inverse_cell_size=dr.opaque(mi.Float, 1.0 / tables.cell_size),
             margin=dr.opaque(mi.Float, tables.margin),
             cells_u=dr.opaque(mi.Int32, tables.shape[0]),
             cells_v=dr.opaque(mi.Int32, tables.shape[1]))
+
+
+def _owned(kind, array):
+    """A Dr.Jit-allocated copy of a numpy array.
+
+    An array made straight from numpy may keep numpy's memory, whose alignment
+    decides whether Dr.Jit emits packet gathers: the kernels would then differ
+    (and be compiled again) from one scratch set to the next.
+    """
+    result = kind(array) + dr.opaque(kind, 0)
+    dr.eval(result)
+    return result
 
 
 @dataclass
@@ -122,25 +134,28 @@ def for_each_segment(grid: Grid, jac: LocalJacobian, radius, state: tuple,
     def more(index, end, rows_left):
         return (index < end) | (rows_left > 0)
 
-    def scan_step(v, index, end, rows_left, found):
+    def scan_step(v, index, end, rows_left, found, segment):
         in_row = index < end
         # ---- lanes done with their row load the next one
         advance = ~in_row & (rows_left > 0)
         next_start, next_end = row_range(v + 1, advance)
         # ---- lanes inside a row test one piece and stop on a hit
-        found = in_row & _piece_geometry(grid, jac, index, radius2, in_row)[1]
+        segment, inside = _piece_geometry(grid, jac, index, radius2, in_row)
+        found = in_row & inside
         index = dr.select(advance, next_start, dr.select(in_row & ~found, index + 1, index))
         end = dr.select(advance, next_end, end)
         v = dr.select(advance, v + 1, v)
         rows_left = dr.select(advance, rows_left - 1, rows_left)
-        return v, index, end, rows_left, found
+        return v, index, end, rows_left, found, tuple(segment)
+
+    empty = tuple(dr.zeros(mi.Float) for _ in range(7)) + (dr.zeros(mi.Bool),)
 
     def visit(v, index, end, rows_left, user):
-        v, index, end, rows_left, found = dr.while_loop(
-            (v, index, end, rows_left, dr.zeros(mi.Bool)),
-            lambda v, index, end, rows_left, found: ~found & more(index, end, rows_left),
+        v, index, end, rows_left, found, segment = dr.while_loop(
+            (v, index, end, rows_left, dr.zeros(mi.Bool), empty),
+            lambda v, index, end, rows_left, found, segment: ~found & more(index, end, rows_left),
             scan_step, label="scratch_scan")
-        segment = _piece_geometry(grid, jac, index, radius2, found)[0]
+        segment = SegmentGeometry(*segment)
         user = dr.if_stmt((segment, index, user), found,
                           lambda segment, piece, user: body(segment, piece, user),
                           lambda segment, piece, user: user, label="scratch_segment")

@@ -39,7 +39,7 @@ def rectangular(a_perp, width, nu, kappa, sigma, coherent: bool = True) -> Cx:
     phase = expi(kappa)
     if coherent:
         phase = phase - 1.0
-    return window_integral(a_perp - half, a_perp + half, nu, sigma) * phase
+    return window_integral(a_perp - half, a_perp + half, nu, sigma, False) * phase
 
 
 def triangular(a_perp, width, nu, kappa, sigma, coherent: bool = True) -> Cx:
@@ -52,11 +52,11 @@ def triangular(a_perp, width, nu, kappa, sigma, coherent: bool = True) -> Cx:
     half = 0.5 * width
     shift = kappa / (math.pi * width)  # facet frequency offset, 1/µm
     tilt = (2.0 * math.pi) * shift * a_perp
-    left = window_integral(a_perp - half, a_perp, nu - shift, sigma) * expi(kappa - tilt)
-    right = window_integral(a_perp, a_perp + half, nu + shift, sigma) * expi(kappa + tilt)
+    left = window_integral(a_perp - half, a_perp, nu - shift, sigma, False) * expi(kappa - tilt)
+    right = window_integral(a_perp, a_perp + half, nu + shift, sigma, False) * expi(kappa + tilt)
     result = left + right
     if coherent:
-        result = result - window_integral(a_perp - half, a_perp + half, nu, sigma)
+        result = result - window_integral(a_perp - half, a_perp + half, nu, sigma, False)
     return result
 
 

@@ -61,18 +61,22 @@ def _skippable_end_term(t, nu, sigma):
     return Cx(re, im)
 
 
-def window_integral(t0, t1, nu, sigma):
+def window_integral(t0, t1, nu, sigma, skip_far_ends: bool = True):
     """``Φ(t1; ν) - Φ(t0; ν) = ∫_{t0}^{t1} exp(-τ²/2σ²) exp(-2πiντ) dτ`` (complex).
 
     ``Φ(t; ν) = ∫_{-∞}^{t} exp(-τ²/2σ²) exp(-2πiντ) dτ`` (MODEL.md §3.2), for
     ``t0 <= t1`` measured from the foot point of the shading point on the line
     of integration.  The full-line terms of both ends cancel analytically, so
-    there is no cancellation when both ends lie on the same side.
+    there is no cancellation when both ends lie on the same side.  With
+    ``skip_far_ends`` the complex-erf term of an end beyond 6σ is skipped for
+    whole SIMD packets (worth its branch for segment ends, not for the edges of
+    a scratch's cross-section, which are always near).
     """
     limit = END_CLAMP_SIGMAS * sigma
     t0 = dr.clip(t0, -limit, limit)
     t1 = dr.clip(t1, -limit, limit)
     steps = dr.select(t1 >= 0.0, 1.0, 0.0) - dr.select(t0 >= 0.0, 1.0, 0.0)
     line = 2.0 * dr.exp((-2.0 * math.pi ** 2) * (sigma * sigma) * nu * nu) * steps
-    result = _skippable_end_term(t1, nu, sigma) - _skippable_end_term(t0, nu, sigma) + line
+    end_term = _skippable_end_term if skip_far_ends else _end_term
+    result = end_term(t1, nu, sigma) - end_term(t0, nu, sigma) + line
     return result * (_SQRT_HALF_PI * sigma)

@@ -53,6 +53,24 @@ def test01_scratched_half_of_a_plate_shows_coloured_glints():
     assert np.median(chroma[right]) < np.median(chroma[bright])
 
 
+def test02_a_scene_with_another_scratch_count_renders_without_compiling():
+    import drjit as dr
+
+    def launches(count, seed):
+        s = scratch.random_scratches(count, seed=seed, width=scratch.Uniform(1e-6, 5e-6),
+                                     depth=scratch.Constant(2e-7), region=((0.0, 0.0), (0.5, 1.0)))
+        scene = mi.load_dict(dict(scene_dict(s), sensor=dict(scene_dict(s)["sensor"], film={
+            "type": "hdrfilm", "width": 16, "height": 16, "rfilter": {"type": "box"}})))
+        with dr.scoped_set_flag(dr.JitFlag.KernelHistory, True):
+            dr.kernel_history_clear()
+            dr.eval(mi.render(scene, spp=2))
+            return [k for k in dr.kernel_history() if k["type"] == dr.KernelType.JIT]
+
+    launches(50, 1)
+    second = launches(1234, 2)
+    assert second and all(k["cache_hit"] for k in second)
+
+
 if __name__ == "__main__":  # write the test image for a look: python tests/bsdf/test_render.py out.png
     import sys
 
