@@ -24,12 +24,18 @@ UV Jacobian) is unknown at load time; the automatic cell size is the largest
 power of two whose occupied cells hold at most ``TARGET_PER_CELL`` pieces on
 average (or where finer cells stop thinning them: clustered scratches), so a
 query tests a few dozen pieces at most when the window is smaller than a cell
-and little more than the pieces inside it otherwise.  It is bounded below so that pieces stay within a few times the segment count and
-cells within ``MAX_CELLS_PER_AXIS`` per axis; a ``cell_size`` hint overrides
-it.  Pieces are also at most ``MAX_PIECE_UV`` long: a long piece would lose
+and little more than the pieces inside it otherwise.  The search looks at a
+crop of the UV box holding about ``SEARCH_PIECES`` pieces (the density, not
+the count, decides).  The size is bounded below so that pieces stay within
+twice the segment count and cells within ``MAX_CELLS_PER_AXIS`` per axis; a
+``cell_size`` hint overrides it.  Pieces are also at most ``MAX_PIECE_UV`` long: a long piece would lose
 float32 accuracy of its position far from its stored start (1/64 UV keeps that
 error below 1 nm for objects up to a metre per UV unit).  Splitting changes
 nothing else: the finite-segment model is additive along a line.
+
+Memory: everything runs in chunks of ``CHUNK`` scratches or pieces into
+preallocated arrays, so the transient memory stays a small multiple of the
+final table (3.1 million CD scratches load in well under 2 GB).
 """
 from __future__ import annotations
 
@@ -50,6 +56,10 @@ MAX_PIECE_UV = 1.0 / 64.0
 MAX_CELLS_PER_AXIS = 2048
 #: Splitting may add at most this many pieces per segment (or 2^20 in all).
 EXTRA_PIECES_PER_SEGMENT = 3.0
+#: Pieces in the crop the automatic cell size is chosen on.
+SEARCH_PIECES = 1 << 19
+#: Scratches (or pieces) processed at a time.
+CHUNK = 1 << 18
 #: Columns of the segment table.
 SEGMENT_COLUMNS = 8
 
@@ -80,37 +90,34 @@ def build_tables(scratches: ScratchSet, cell_size: float = 0.0) -> GridTables:
         Grid cell size in UV units; 0 chooses it from the scratch density
         (rounded up to a power of two either way).
     """
-    a, b, width, depth, triangular = _pieces(scratches)
+    pieces = _pieces(scratches)
+    a, b = pieces[0], pieces[1]
     if len(a) == 0:
         return _empty_tables()
-    a, b, width, depth, triangular = _split(a, b, width, depth, triangular, MAX_PIECE_UV)
 
     lo = np.minimum(a.min(axis=0), b.min(axis=0))
     hi = np.maximum(a.max(axis=0), b.max(axis=0))
     extent = float((hi - lo).max())
     floor = _power_of_two(max(extent / MAX_CELLS_PER_AXIS, _splitting_limit(a, b)))
-    h = _power_of_two(cell_size) if cell_size > 0 else _automatic_cell_size(a, b, lo, extent, floor)
+    h = _power_of_two(cell_size) if cell_size > 0 else _automatic_cell_size(a, b, lo, hi, floor)
     h = max(h, floor)
-    a, b, width, depth, triangular = _split(a, b, width, depth, triangular, h)
-
     origin = np.floor(lo / h) * h
     shape = np.floor((hi - origin) / h).astype(np.int64) + 1
-    cell_uv = np.clip(np.floor((0.5 * (a + b) - origin) / h).astype(np.int64), 0, shape - 1)
-    cell = cell_uv[:, 1] * shape[0] + cell_uv[:, 0]
-    del cell_uv
+
+    rows, cell = _rows_and_cells(pieces, h, origin, shape)
+    del pieces, a, b
     order = np.argsort(cell, kind="stable")
     counts = np.bincount(cell, minlength=int(shape[0] * shape[1]))
     cell_start = np.zeros(len(counts) + 1, dtype=np.uint32)
     np.cumsum(counts, out=cell_start[1:])
     del cell, counts
-
-    longest = float(np.max(np.abs(b - a))) if len(a) else 0.0
+    rows = _take_rows(rows, order)
+    longest = float(np.abs(rows[:, 4:6]).max())
     # float32 grid coordinates in the kernel are exact to ~2.5e-4 cells at 2048 cells
     margin = 0.5 * longest / h + 2e-3 + 1e-6 * float(np.abs(np.concatenate([lo, hi])).max()) / h
-    return GridTables(
-        segments=_segment_rows(a[order], b[order], width[order], depth[order], triangular[order]),
-        cell_start=cell_start, origin=(float(origin[0]), float(origin[1])), cell_size=float(h),
-        shape=(int(shape[0]), int(shape[1])), piece_count=len(a), margin=margin)
+    return GridTables(segments=rows, cell_start=cell_start, origin=(float(origin[0]), float(origin[1])),
+                      cell_size=float(h), shape=(int(shape[0]), int(shape[1])), piece_count=len(rows),
+                      margin=margin)
 
 
 # --------------------------------------------------------------- internals
@@ -122,31 +129,53 @@ def _empty_tables() -> GridTables:
 
 
 def _pieces(scratches: ScratchSet):
-    """Straight pieces with width/depth from the noise; pieces that cannot scatter are dropped."""
-    segments = subdivide(scratches)
-    keep = (segments.width > 0) & (segments.depth > 0) & np.any(segments.a != segments.b, axis=1)
-    return (segments.a[keep], segments.b[keep], segments.width[keep], segments.depth[keep],
-            segments.profile[keep] == Profile.TRIANGULAR)
+    """(a, b, width µm, ±depth µm) of the straight pieces, at most MAX_PIECE_UV long.
+
+    Width and depth come from the noise (``subdivide``); pieces that cannot
+    scatter (zero width, depth or length) are dropped; V-grooves carry a
+    negative depth.  Chunks of scratches bound the temporaries of ``subdivide``.
+    """
+    parts = []
+    for start in range(0, scratches.count, CHUNK):
+        chunk = scratches if scratches.count <= CHUNK else \
+            scratches.select(np.arange(start, min(start + CHUNK, scratches.count)))
+        segments = subdivide(chunk)
+        keep = (segments.width > 0) & (segments.depth > 0) & np.any(segments.a != segments.b, axis=1)
+        signed = np.where(segments.profile == Profile.TRIANGULAR, -segments.depth, segments.depth)
+        piece = (segments.a[keep], segments.b[keep], (segments.width[keep] * 1e6).astype(np.float32),
+                 (signed[keep] * 1e6).astype(np.float32))
+        del segments, keep, signed
+        parts.append(_split(piece, MAX_PIECE_UV))
+    if not parts:
+        return np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0, np.float32), np.zeros(0, np.float32)
+    if len(parts) == 1:
+        return parts[0]
+    return tuple(np.concatenate([p[i] for p in parts]) for i in range(4))
 
 
 def _power_of_two(value: float) -> float:
     return 2.0 ** math.ceil(math.log2(max(value, 2.0 ** -60)))
 
 
+def _spans(a, b) -> np.ndarray:
+    """Per-axis extent of each piece: splitting to cell size h makes ceil(span / h) pieces."""
+    return np.abs(b - a).max(axis=1)
+
+
 def _splitting_limit(a, b) -> float:
     """Smallest cell size for which splitting pieces to one cell adds at most the allowed count."""
-    total = float(np.abs(b - a).max(axis=1).sum())
-    return total / max(EXTRA_PIECES_PER_SEGMENT * len(a), 2.0 ** 20)
+    return float(_spans(a, b).sum()) / max(EXTRA_PIECES_PER_SEGMENT * len(a), 2.0 ** 20)
 
 
-def _automatic_cell_size(a, b, lo, extent, floor) -> float:
+def _automatic_cell_size(a, b, lo, hi, floor) -> float:
     """Largest power of two with at most TARGET_PER_CELL pieces per occupied cell on average.
 
     Halving stops early where it no longer thins the cells (by less than a
     quarter): the scratches are then clustered below that scale (parallel
     tracks, a grating), and smaller cells would only add cells to visit.
     """
-    h = _power_of_two(extent)
+    a, b, lo, hi = _search_crop(a, b, lo, hi)
+    h = _power_of_two(float((hi - lo).max()))
     density = _pieces_per_occupied_cell(a, b, lo, h)
     while h > floor and density > TARGET_PER_CELL:
         finer = _pieces_per_occupied_cell(a, b, lo, 0.5 * h)
@@ -156,39 +185,71 @@ def _automatic_cell_size(a, b, lo, extent, floor) -> float:
     return h
 
 
-def _pieces_per_occupied_cell(a, b, lo, h) -> float:
-    a, b = _split(a, b, None, None, None, h)[:2]
+def _search_crop(a, b, lo, hi):
+    """The pieces whose midpoints fall in a square around the median holding ~SEARCH_PIECES of them."""
+    if len(a) <= SEARCH_PIECES:
+        return a, b, lo, hi
     midpoint = 0.5 * (a + b)
-    cells = np.floor((midpoint - lo) / h).astype(np.int64)
+    centre = np.median(midpoint[:: max(1, len(a) // 4096)], axis=0)
+    half = 0.5 * float((hi - lo).max()) * math.sqrt(SEARCH_PIECES / len(a))
+    for _ in range(40):  # widen until the crop holds enough pieces (clustered sets)
+        inside = np.all(np.abs(midpoint - centre) <= half, axis=1)
+        if np.count_nonzero(inside) >= SEARCH_PIECES // 2 or half > float((hi - lo).max()):
+            break
+        half *= 1.5
+    return a[inside], b[inside], np.maximum(lo, centre - half), np.minimum(hi, centre + half)
+
+
+def _pieces_per_occupied_cell(a, b, lo, h) -> float:
+    a, b = _split((a, b), h)
+    cells = np.floor((0.5 * (a + b) - lo) / h).astype(np.int64)
+    cells -= cells.min(axis=0)
     shape = cells.max(axis=0) + 1
     occupied = np.zeros(int(shape[0] * shape[1]), dtype=bool)
     occupied[cells[:, 1] * shape[0] + cells[:, 0]] = True
     return len(a) / np.count_nonzero(occupied)
 
 
-def _split(a, b, width, depth, triangular, max_length):
-    """Split pieces longer than ``max_length`` (per axis) into equal collinear pieces."""
-    parts = np.maximum(1, np.ceil(np.abs(b - a).max(axis=1) / max_length)).astype(np.int64)
+def _split(arrays, max_length):
+    """Split pieces ``(a, b, ...)`` whose per-axis span exceeds ``max_length`` into equal collinear pieces."""
+    a, b = arrays[0], arrays[1]
+    parts = np.maximum(1, np.ceil(_spans(a, b) / max_length)).astype(np.int64)
     if np.all(parts == 1):
-        return a, b, width, depth, triangular
+        return arrays
     source = np.repeat(np.arange(len(a)), parts)
     k = np.arange(len(source)) - np.repeat(np.cumsum(parts) - parts, parts)
-    f0 = (k / parts[source])[:, None]
-    f1 = ((k + 1) / parts[source])[:, None]
-    direction = (b - a)[source]
-    new_a = a[source] + f0 * direction
-    new_b = np.where(f1 == 1.0, b[source], a[source] + f1 * direction)
-    if width is None:
-        return new_a, new_b, None, None, None
-    return new_a, new_b, width[source], depth[source], triangular[source]
+    step = (b - a)[source] / parts[source, None]
+    new_a = a[source] + k[:, None] * step
+    new_b = np.where((k + 1 == parts[source])[:, None], b[source], new_a + step)  # exact far ends
+    return (new_a, new_b) + tuple(x[source] for x in arrays[2:])
 
 
-def _segment_rows(a, b, width, depth, triangular) -> np.ndarray:
-    rows = np.empty((len(a), SEGMENT_COLUMNS), dtype=np.float32)
-    a_hi = a.astype(np.float32)
-    rows[:, 0:2] = a_hi
-    rows[:, 2:4] = a - a_hi.astype(np.float64)
-    rows[:, 4:6] = b - a
-    rows[:, 6] = width * 1e6
-    rows[:, 7] = np.where(triangular, -depth, depth) * 1e6
-    return rows
+def _rows_and_cells(pieces, h, origin, shape):
+    """Kernel rows of the pieces split to one cell, and the cell of each row's midpoint (chunked)."""
+    a, b = pieces[0], pieces[1]
+    total = int(np.maximum(1, np.ceil(_spans(a, b) / h)).sum())
+    rows = np.empty((total, SEGMENT_COLUMNS), dtype=np.float32)
+    cell = np.empty(total, dtype=np.int64)
+    filled = 0
+    for start in range(0, len(a), CHUNK):
+        chunk = _split(tuple(x[start:start + CHUNK] for x in pieces), h)
+        ca, cb, width, depth = chunk
+        end = filled + len(ca)
+        a_hi = ca.astype(np.float32)
+        rows[filled:end, 0:2] = a_hi
+        rows[filled:end, 2:4] = ca - a_hi
+        rows[filled:end, 4:6] = cb - ca
+        rows[filled:end, 6] = width
+        rows[filled:end, 7] = depth
+        uv = np.clip(np.floor((0.5 * (ca + cb) - origin) / h).astype(np.int64), 0, shape - 1)
+        cell[filled:end] = uv[:, 1] * shape[0] + uv[:, 0]
+        filled = end
+    return rows, cell
+
+
+def _take_rows(rows, order):
+    """``rows[order]`` a chunk at a time into a new array (never two full temporaries)."""
+    result = np.empty_like(rows)
+    for start in range(0, len(order), CHUNK * 4):
+        result[start:start + CHUNK * 4] = rows[order[start:start + CHUNK * 4]]
+    return result
