@@ -17,7 +17,7 @@ import drjit as dr
 import mitsuba as mi
 
 from .segment import SegmentGeometry
-from .tables import GridTables
+from .tables import GridTables, aligned
 
 __all__ = ["Grid", "LocalJacobian", "for_each_segment", "jacobian", "segment_at"]
 
@@ -49,15 +49,14 @@ class Grid:
 
 
 def _owned(kind, array):
-    """A Dr.Jit-allocated copy of a numpy array.
+    """A Dr.Jit array of a numpy array, 64-byte aligned.
 
-    An array made straight from numpy may keep numpy's memory, whose alignment
-    decides whether Dr.Jit emits packet gathers: the kernels would then differ
-    (and be compiled again) from one scratch set to the next.
+    On the CPU Dr.Jit maps numpy's memory without copying, and the alignment
+    decides whether it emits packet gathers: the kernels would then differ
+    (and be compiled again) from one scratch set to the next.  An unaligned
+    array is copied into an aligned buffer first (the tables come aligned).
     """
-    result = kind(array) + dr.opaque(kind, 0)
-    dr.eval(result)
-    return result
+    return kind(aligned(array))
 
 
 @dataclass

@@ -72,19 +72,28 @@ diffraction inside a Gaussian coherence window around each shading point.
 
 The model.  Each evaluation is one coherence window w = exp(-|x - x0|²/2σ²) at
 the shading point x0.  The reflected far field is the mirror lobe of the
-window plus, for every straight scratch segment within 4σ, its analytic
-transform: a finite segment (complex error function through the Faddeeva
-function) with a rectangular or V-shaped cross-section evaluated at a complex
-frequency (the window's slope across the scratch), depth and width following
-the file's simplex noise.  f_r = F |U|² / (λ² π σ²), F the spectral conductor
-Fresnel at the half vector; energy is conserved up to evanescent light, except
-where scratches cross (their transfer functions are added, the paper's
-limitation).  Scratches are UV polylines (mesh UVs required); phases are
-formed relative to x0, so float32 suffices at any object size.  Renders need a
-spectral variant (llvm_ad_spectral, cuda_ad_spectral): diffraction colours do
-not exist in RGB.  Sampling: mirror lobe, scratch lines (segment drawn in
-proportion to its diffracted energy) and the diffuse base, combined with the
-balance heuristic; pdf and weights use the first (hero) wavelength.
+window plus, for every straight scratch segment within 4σ, its transform:
+the window integrated along the segment between its ends and across its
+rectangular or V-shaped cross-section, both exactly (complex error functions
+through the Faddeeva function; the window's curvature across wide or offset
+scratches included, which MODEL.md's complex-frequency form only linearises),
+depth and width following the file's simplex noise.  f_r = F |U|² / (λ² π σ²),
+F the spectral conductor Fresnel at the half vector; coherent mode adds the
+amplitudes (interference, grating orders), incoherent mode the intensities.
+Without scratches in the window the BSDF is the window's Gaussian mirror lobe
+(angular standard deviation λ / (2√2 π σ), 0.7° at 550 nm by default) times F:
+a glossy lobe, never a delta, so scratched and unscratched points are one
+BSDF; its albedo is F.  Energy: light only moves between directions for
+shallow scratches; the depth phase 2π(γ_i + γ_o)d/λ depends on the outgoing
+direction, so deep grooves can reflect a few percent more than they receive
+(the scalar model itself, not this implementation: docs/bsdf.md).  Scratch
+crossings add their transfer functions (the paper's limitation).  Scratches
+are UV polylines (mesh UVs required); phases are formed relative to x0, so
+float32 suffices at any object size.  Renders need an unpolarised spectral JIT
+variant (llvm_ad_spectral, cuda_ad_spectral): diffraction colours do not exist
+in RGB.  Sampling: mirror lobe, scratch lines (segment drawn in proportion to
+its diffracted energy) and the diffuse base, combined with the balance
+heuristic; pdf and weights use the first (hero) wavelength.
 
 .. code-block:: python
 

@@ -26,9 +26,9 @@ average (or where finer cells stop thinning them: clustered scratches), so a
 query tests a few dozen pieces at most when the window is smaller than a cell
 and little more than the pieces inside it otherwise.  The search looks at a
 crop of the UV box holding about ``SEARCH_PIECES`` pieces (the density, not
-the count, decides).  The size is bounded below so that pieces stay within
-twice the segment count and cells within ``MAX_CELLS_PER_AXIS`` per axis; a
-``cell_size`` hint overrides it.  Pieces are also at most ``MAX_PIECE_UV`` long: a long piece would lose
+the count, decides).  The size is bounded below so that pieces stay within a
+budget (four times the segment count, at most ``MAX_PIECES``) and cells within
+``MAX_CELLS_PER_AXIS`` per axis; a ``cell_size`` hint overrides it.  Pieces are also at most ``MAX_PIECE_UV`` long: a long piece would lose
 float32 accuracy of its position far from its stored start (1/64 UV keeps that
 error below 1 nm for objects up to a metre per UV unit).  Splitting changes
 nothing else: the finite-segment model is additive along a line.
@@ -46,7 +46,7 @@ import numpy as np
 
 from ..scratch import Profile, ScratchSet, subdivide
 
-__all__ = ["GridTables", "build_tables", "TARGET_PER_CELL", "MAX_PIECE_UV"]
+__all__ = ["GridTables", "build_tables", "aligned", "TARGET_PER_CELL", "MAX_PIECE_UV"]
 
 #: Pieces per occupied cell aimed at by the automatic cell size.
 TARGET_PER_CELL = 4.0
@@ -54,8 +54,10 @@ TARGET_PER_CELL = 4.0
 MAX_PIECE_UV = 1.0 / 64.0
 #: Largest number of cells along one axis (keeps cell_start within 16 MB).
 MAX_CELLS_PER_AXIS = 2048
-#: Splitting may add at most this many pieces per segment (or 2^20 in all).
+#: Splitting may add at most this many pieces per piece (at least 2^20 in all) ...
 EXTRA_PIECES_PER_SEGMENT = 3.0
+#: ... up to this many pieces in all (32 bytes each in the kernel's table).
+MAX_PIECES = 16 * 2 ** 20
 #: Pieces in the crop the automatic cell size is chosen on.
 SEARCH_PIECES = 1 << 19
 #: Scratches (or pieces) processed at a time.
@@ -104,14 +106,8 @@ def build_tables(scratches: ScratchSet, cell_size: float = 0.0) -> GridTables:
     origin = np.floor(lo / h) * h
     shape = np.floor((hi - origin) / h).astype(np.int64) + 1
 
-    rows, cell = _rows_and_cells(pieces, h, origin, shape)
+    rows, cell_start = _sorted_rows(pieces, h, origin, shape)
     del pieces, a, b
-    order = np.argsort(cell, kind="stable")
-    counts = np.bincount(cell, minlength=int(shape[0] * shape[1]))
-    cell_start = np.zeros(len(counts) + 1, dtype=np.uint32)
-    np.cumsum(counts, out=cell_start[1:])
-    del cell, counts
-    rows = _take_rows(rows, order)
     longest = float(np.abs(rows[:, 4:6]).max())
     # float32 grid coordinates in the kernel are exact to ~2.5e-4 cells at 2048 cells
     margin = 0.5 * longest / h + 2e-3 + 1e-6 * float(np.abs(np.concatenate([lo, hi])).max()) / h
@@ -163,8 +159,14 @@ def _spans(a, b) -> np.ndarray:
 
 
 def _splitting_limit(a, b) -> float:
-    """Smallest cell size for which splitting pieces to one cell adds at most the allowed count."""
-    return float(_spans(a, b).sum()) / max(EXTRA_PIECES_PER_SEGMENT * len(a), 2.0 ** 20)
+    """Smallest cell size for which splitting pieces to one cell stays within the piece budget.
+
+    The budget: ``EXTRA_PIECES_PER_SEGMENT`` more pieces per piece, but no more
+    than ``MAX_PIECES`` in all (and never less than 2^20 extra pieces).
+    """
+    count = len(a)
+    budget = max(min((1.0 + EXTRA_PIECES_PER_SEGMENT) * count, MAX_PIECES), count + 2.0 ** 20)
+    return float(_spans(a, b).sum()) / (budget - count)
 
 
 def _automatic_cell_size(a, b, lo, hi, floor) -> float:
@@ -224,32 +226,71 @@ def _split(arrays, max_length):
     return (new_a, new_b) + tuple(x[source] for x in arrays[2:])
 
 
-def _rows_and_cells(pieces, h, origin, shape):
-    """Kernel rows of the pieces split to one cell, and the cell of each row's midpoint (chunked)."""
-    a, b = pieces[0], pieces[1]
-    total = int(np.maximum(1, np.ceil(_spans(a, b) / h)).sum())
-    rows = np.empty((total, SEGMENT_COLUMNS), dtype=np.float32)
-    cell = np.empty(total, dtype=np.int64)
-    filled = 0
-    for start in range(0, len(a), CHUNK):
-        chunk = _split(tuple(x[start:start + CHUNK] for x in pieces), h)
-        ca, cb, width, depth = chunk
-        end = filled + len(ca)
+def _cells(a, b, h, origin, shape):
+    """Grid cell (row-major index) of each piece's midpoint."""
+    uv = np.clip(np.floor((0.5 * (a + b) - origin) / h).astype(np.int64), 0, shape - 1)
+    return uv[:, 1] * shape[0] + uv[:, 0]
+
+
+def _sorted_rows(pieces, h, origin, shape):
+    """Kernel rows of the pieces split to one cell, sorted by cell, and ``cell_start``.
+
+    A counting sort in two chunked passes: the first counts the pieces per
+    cell, the second splits again and writes every row straight to its place,
+    so only the final table is ever held in full.
+    """
+    cell_count = int(shape[0] * shape[1])
+    counts = np.zeros(cell_count, dtype=np.int64)
+    for chunk in _split_chunks(pieces, h):
+        counts += np.bincount(_cells(chunk[0], chunk[1], h, origin, shape), minlength=cell_count)
+    cell_start = _empty_aligned(cell_count + 1, np.uint32)
+    cell_start[0] = 0
+    np.cumsum(counts, out=cell_start[1:])
+    cursor = cell_start[:-1].astype(np.int64)
+    rows = _empty_aligned((int(cell_start[-1]), SEGMENT_COLUMNS), np.float32)
+    for ca, cb, width, depth in _split_chunks(pieces, h):
+        cell = _cells(ca, cb, h, origin, shape)
+        order = np.argsort(cell, kind="stable")
+        cell = cell[order]
+        first = np.searchsorted(cell, cell, side="left")  # start of each piece's run within the chunk
+        destination = cursor[cell] + (np.arange(len(cell)) - first)
+        cursor += np.bincount(cell, minlength=cell_count)
+        ca, cb = ca[order], cb[order]
         a_hi = ca.astype(np.float32)
-        rows[filled:end, 0:2] = a_hi
-        rows[filled:end, 2:4] = ca - a_hi
-        rows[filled:end, 4:6] = cb - ca
-        rows[filled:end, 6] = width
-        rows[filled:end, 7] = depth
-        uv = np.clip(np.floor((0.5 * (ca + cb) - origin) / h).astype(np.int64), 0, shape - 1)
-        cell[filled:end] = uv[:, 1] * shape[0] + uv[:, 0]
-        filled = end
-    return rows, cell
+        rows[destination, 0:2] = a_hi
+        rows[destination, 2:4] = ca - a_hi
+        rows[destination, 4:6] = cb - ca
+        rows[destination, 6] = width[order]
+        rows[destination, 7] = depth[order]
+    return rows, cell_start
 
 
-def _take_rows(rows, order):
-    """``rows[order]`` a chunk at a time into a new array (never two full temporaries)."""
-    result = np.empty_like(rows)
-    for start in range(0, len(order), CHUNK * 4):
-        result[start:start + CHUNK * 4] = rows[order[start:start + CHUNK * 4]]
+def _split_chunks(pieces, h):
+    for start in range(0, len(pieces[0]), CHUNK):
+        yield _split(tuple(x[start:start + CHUNK] for x in pieces), h)
+
+
+ALIGNMENT = 64
+
+
+def _empty_aligned(shape, dtype) -> np.ndarray:
+    """``np.empty`` starting on a 64-byte boundary (see :func:`aligned`)."""
+    dtype = np.dtype(dtype)
+    size = int(np.prod(shape)) * dtype.itemsize
+    raw = np.empty(size + ALIGNMENT, dtype=np.uint8)
+    offset = (-raw.ctypes.data) % ALIGNMENT
+    return raw[offset:offset + size].view(dtype).reshape(shape)
+
+
+def aligned(array: np.ndarray) -> np.ndarray:
+    """``array`` as a contiguous array on a 64-byte boundary (the array itself when it already is).
+
+    Dr.Jit's CPU backend maps numpy memory without copying, and emits different
+    (packet or element) gathers depending on its alignment.
+    """
+    array = np.ascontiguousarray(array)
+    if array.ctypes.data % ALIGNMENT == 0:
+        return array
+    result = _empty_aligned(array.shape, array.dtype)
+    result[...] = array
     return result

@@ -18,14 +18,18 @@ UNIT_SCALE = 1e-3
 X0_UV = (0.5, 0.5)
 
 
-def to_uv(points_um):
-    return np.asarray(X0_UV) + np.asarray(points_um, dtype=np.float64) * (1e-6 / UNIT_SCALE)
+def to_uv(points_um, jacobian=None):
+    """UV of points given in µm around x0 on the test surface (``jacobian``: dp/du, dp/dv columns)."""
+    points = np.asarray(points_um, dtype=np.float64) * (1e-6 / UNIT_SCALE)
+    if jacobian is not None:
+        points = np.linalg.solve(np.asarray(jacobian, dtype=np.float64), points.T).T
+    return np.asarray(X0_UV) + points
 
 
-def scratch_set(scratches) -> ScratchSet:
+def scratch_set(scratches, jacobian=None) -> ScratchSet:
     """ScratchSet of reference.Scratch objects (µm around x0)."""
     return ScratchSet.from_polylines(
-        [to_uv([s.a, s.b]) for s in scratches],
+        [to_uv([s.a, s.b], jacobian) for s in scratches],
         width=[s.width * 1e-6 for s in scratches], depth=[s.depth * 1e-6 for s in scratches],
         profile=[Profile.TRIANGULAR if s.profile == 1 else Profile.RECTANGULAR for s in scratches])
 

@@ -172,7 +172,8 @@ def test06_reciprocity():
 
 
 def test07_jacobian_and_frame_only_matter_through_metres():
-    """Stretching UV (dp/du, unit_scale) or rotating the shading frame with the directions changes nothing."""
+    """Stretching or shearing UV (dp/du, dp/dv, unit_scale) or rotating the shading frame with the
+    directions changes nothing when the scratches stay where they are in metres."""
     scratches = [ref.Scratch((-1.5, 0.2), (2.0, 0.9), 0.8, 0.15), ref.Scratch((-20, -0.5), (20, -0.5), 1.5, 0.6, ref.TRI)]
     wi, wo = shading.direction(35, 20), np.array([shading.direction(a, b) for a, b in [(10, 200), (50, 100), (5, 5)]])
     base = shading.eval_brdf(shading.load_bsdf(scratches, sigma_um=2.0), wi, wo)
@@ -183,6 +184,15 @@ def test07_jacobian_and_frame_only_matter_through_metres():
     si.dp_du, si.dp_dv = mi.Vector3f(2, 0, 0), mi.Vector3f(0, 2, 0)
     np.testing.assert_allclose(shading.spectrum_rows(stretched.eval(mi.BSDFContext(), si, shading.vector(wo)))
                                / wo[:, 2:3], base, rtol=1e-4)
+
+    # a sheared, stretched UV map: the same scratches in metres, other UV coordinates
+    jacobian = np.array([[1.7, 0.6], [0.2, 0.8]])  # columns: dp/du, dp/dv (in the tangent plane)
+    sheared = shading.load_bsdf(shading.scratch_set(scratches, jacobian), sigma_um=2.0)
+    si = shading.interaction(len(wo), wi)
+    si.dp_du = mi.Vector3f(float(jacobian[0, 0]), float(jacobian[1, 0]), 0)
+    si.dp_dv = mi.Vector3f(float(jacobian[0, 1]), float(jacobian[1, 1]), 0)
+    np.testing.assert_allclose(shading.spectrum_rows(sheared.eval(mi.BSDFContext(), si, shading.vector(wo)))
+                               / wo[:, 2:3], base, rtol=1e-3)
 
     # a rotated shading frame with directions rotated alike (tangents in world space stay)
     angle = np.radians(37.0)
