@@ -58,13 +58,17 @@ class Model:
 
     def _strategy_weights(self, si, energy, cos_i, has_glossy, has_diffuse, active):
         """(diffuse, scratch, mirror) sample shares; depend on ω_i and the hero wavelength only."""
-        share = sampling_share(energy, self.sigma) if has_glossy else mi.Float(0.0)
-        if has_diffuse and self.diffuse is not None:
+        has_diffuse = has_diffuse and self.diffuse is not None
+        zero = mi.Float(0.0)
+        if not has_glossy:  # only the diffuse component is asked for (if there is one)
+            return mi.Float(1.0 if has_diffuse else 0.0), zero, zero
+        share = sampling_share(energy, self.sigma)
+        if has_diffuse:
             rho = self.diffuse.eval(si, active)[0]
-            specular = self._reflectance(si, cos_i, active)[0] if has_glossy else mi.Float(0.0)
+            specular = self._reflectance(si, cos_i, active)[0]
             q_d = dr.select(rho > 0.0, rho / dr.maximum(rho + specular, 1e-12), 0.0)
         else:
-            q_d = mi.Float(0.0)
+            q_d = zero
         return q_d, (1.0 - q_d) * share, (1.0 - q_d) * (1.0 - share)
 
     # --------------------------------------------------------- evaluation
@@ -108,8 +112,7 @@ class Model:
             return (a, b), energy, density
 
         (a, b), energy, density = for_each_segment(
-            self.grid, jac, WINDOW_RADIUS_SIGMAS * sigma, (field, zero_f, zero_f), body,
-            active & (has_glossy or has_diffuse))
+            self.grid, jac, WINDOW_RADIUS_SIGMAS * sigma, (field, zero_f, zero_f), body, active & has_glossy)
 
         value = pdf = None
         if want_value:

@@ -186,3 +186,27 @@ def test11_diffuse_base_adds_a_lambertian_term_and_obeys_the_context():
     si = shading.interaction(1, wi)
     glossy_only = mi.BSDFContext(mi.TransportMode.Radiance, mi.BSDFFlags.GlossyReflection)
     assert np.all(np.asarray(based.eval(glossy_only, si, shading.vector(wo))) == 0)
+
+
+def test12_a_context_without_a_component_neither_samples_nor_weights_it():
+    scratches = scratch.random_scratches(30, seed=2, region=((0.49, 0.49), (0.51, 0.51)), length=(0.01, 0.02))
+    bsdf = mi.load_dict(scratch_bsdf.plugin_dict(scratches, unit_scale=1e-3, diffuse_reflectance=0.4))
+    si = shading.interaction(4000, shading.direction(30))
+    u = shading.floats(np.linspace(0, 1, 4000, endpoint=False))
+    for flags, component in ((mi.BSDFFlags.DiffuseReflection, mi.BSDFFlags.DiffuseReflection),
+                             (mi.BSDFFlags.GlossyReflection, mi.BSDFFlags.GlossyReflection)):
+        ctx = mi.BSDFContext(mi.TransportMode.Radiance, flags)
+        bs, weight = bsdf.sample(ctx, si, u, mi.Point2f(u, 0.37))
+        sampled = np.asarray(bs.sampled_type)[np.asarray(bs.pdf) > 0]
+        assert len(sampled) and np.all(sampled == int(component))
+        value, pdf = bsdf.eval_pdf(ctx, si, bs.wo)
+        np.testing.assert_allclose(np.asarray(pdf), np.asarray(bs.pdf), rtol=1e-4)
+    only_glossy = mi.BSDFContext(mi.TransportMode.Radiance, mi.BSDFFlags.GlossyReflection)
+    only_diffuse = mi.BSDFContext(mi.TransportMode.Radiance, mi.BSDFFlags.DiffuseReflection)
+    wo = shading.vector([shading.direction(60, 100)] * 4000)
+    assert np.all(np.asarray(bsdf.pdf(only_diffuse, si, wo)) == pytest.approx(np.cos(np.radians(60)) / np.pi,
+                                                                              rel=1e-5))
+    np.testing.assert_allclose(np.asarray(bsdf.eval(only_diffuse, si, wo)), 0.4 * 0.5 / np.pi, rtol=1e-5)
+    full = np.asarray(bsdf.eval(mi.BSDFContext(), si, wo))
+    np.testing.assert_allclose(np.asarray(bsdf.eval(only_glossy, si, wo)), full - 0.4 * 0.5 / np.pi,
+                               rtol=1e-4, atol=1e-6)
