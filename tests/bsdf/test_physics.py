@@ -225,6 +225,23 @@ def test08_float32_suffices_on_a_large_object_far_from_the_uv_origin():
     assert np.sqrt(np.sum((got - expected) ** 2) / np.sum(expected ** 2)) < 0.01
 
 
+def test08b_collinear_polyline_vertices_inside_the_window_change_nothing():
+    """Finite segments are additive along a line: a straight scratch cut at 3 vertices near x0
+    (V-groove and flat bottom) evaluates like the uncut one: the end terms of the joints cancel."""
+    wi = shading.direction(35.0, 20.0)
+    rng = np.random.default_rng(12)
+    wo = np.array([shading.direction(t, p) for t, p in zip(rng.uniform(0, 85, 500), rng.uniform(0, 360, 500))])
+    for profile in (Profile.RECTANGULAR, Profile.TRIANGULAR):
+        whole = ScratchSet.from_polylines([shading.to_uv([[-20.0, 0.7], [20.0, -0.3]])], width=1.5e-6,
+                                          depth=0.3e-6, profile=profile)
+        cut = ScratchSet.from_polylines([shading.to_uv([[-20.0, 0.7], [-1.0, 0.225], [0.4, 0.19],
+                                                        [2.5, 0.1375], [20.0, -0.3]])],
+                                        width=1.5e-6, depth=0.3e-6, profile=profile)
+        a = shading.eval_brdf(shading.load_bsdf(whole, sigma_um=2.0), wi, wo)
+        b = shading.eval_brdf(shading.load_bsdf(cut, sigma_um=2.0), wi, wo)
+        np.testing.assert_allclose(b, a, rtol=2e-3, atol=1e-5 * a.max())
+
+
 NAN_CASES = {
     "coincident": [ref.Scratch((-10, 0.5), (10, 0.5), 1.0, 0.3)] * 2,
     "through_x0_ending_at_x0": [ref.Scratch((0.0, 0.0), (10, 0.0), 1.0, 0.3), ref.Scratch((0, 0), (0, 10), 1.0, 0.3)],
