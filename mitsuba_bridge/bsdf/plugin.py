@@ -160,9 +160,7 @@ def _make_class() -> type:
             mi.BSDF.__init__(self, props)
             try:
                 self._configure(props)
-            except scratch.ScratchFormatError as error:
-                raise ValueError(f"{parameters.PLUGIN_NAME}: {error}") from error
-            except ValueError as error:
+            except ValueError as error:  # ScratchFormatError included: it names file and field
                 raise ValueError(f"{parameters.PLUGIN_NAME}: {error}") from error
 
         def _configure(self, props):
