@@ -1,0 +1,116 @@
+"""The wave-optical scratch BSDF ``scratch_diffraction`` for Mitsuba 3 (MODEL.md).
+
+Importing this package imports neither Mitsuba nor Dr.Jit; the functions
+below do, and need an active variant (``mi.set_variant(...)``).
+
+Layout: pure Dr.Jit maths in :mod:`.complexmath`, :mod:`.faddeeva`,
+:mod:`.window`, :mod:`.profiles`, :mod:`.segment`, :mod:`.sampling`; the
+numpy side in :mod:`.tables` (segment table and UV grid) and :mod:`.memory`
+(in-memory parameters); the per-lane model in :mod:`.model` with the grid walk
+of :mod:`.lookup`; and the thin ``mi.BSDF`` class in :mod:`.plugin`, whose
+docstring is the manual.
+"""
+from __future__ import annotations
+
+from .parameters import DEFAULT_COHERENCE_DIAMETER_M, DEFAULT_MATERIAL, PLUGIN_NAME
+
+__all__ = ["register", "plugin_dict", "scratch_parameters", "update_scratches", "PLUGIN_NAME"]
+
+
+def register() -> None:
+    """Register ``scratch_diffraction`` for the active Mitsuba variant (idempotent)."""
+    import mitsuba as mi
+
+    from .plugin import plugin_class
+
+    cls = plugin_class()
+    mi.register_bsdf(PLUGIN_NAME, lambda props: cls(props))
+
+
+def plugin_dict(scratches=None, *, filename=None, coherence_diameter=DEFAULT_COHERENCE_DIAMETER_M,
+                unit_scale=1.0, material=DEFAULT_MATERIAL, eta=None, k=None, diffuse_reflectance=None,
+                coherent=True) -> dict:
+    """The ``mi.load_dict`` dictionary of a ``scratch_diffraction`` BSDF.
+
+    Parameters
+    ----------
+    scratches : mitsuba_bridge.scratch.ScratchSet, optional
+        Passed in memory (Dr.Jit tensors, no temporary file).  Mutually
+        exclusive with ``filename``; neither gives an unscratched surface.
+    filename : str or path, optional
+        A format-v1 scratch file, read when the dictionary is loaded.
+    coherence_diameter : float
+        δ_c in metres.
+    unit_scale : float
+        Metres per scene unit.
+    material : str
+        Conductor name of Mitsuba's ``conductor`` plugin, or ``"none"``.
+    eta, k : float or dict, optional
+        Explicit conductor indices (a number or a Mitsuba spectrum/texture
+        dictionary); replace ``material``.
+    diffuse_reflectance : float or dict, optional
+        Lambertian base.
+    coherent : bool
+        Coherent or incoherent superposition.
+
+    Needs an active Mitsuba variant (the tensors belong to it).
+    """
+    if scratches is not None and filename is not None:
+        raise ValueError("give either scratches or filename, not both")
+    if (eta is None) != (k is None):
+        raise ValueError("eta and k go together")
+    result = {"type": PLUGIN_NAME, "coherence_diameter": float(coherence_diameter),
+              "unit_scale": float(unit_scale), "coherent": bool(coherent)}
+    if eta is not None:
+        result["eta"], result["k"] = _spectrum(eta), _spectrum(k)
+    else:
+        result["material"] = str(material)
+    if diffuse_reflectance is not None:
+        result["diffuse_reflectance"] = _spectrum(diffuse_reflectance)
+    if filename is not None:
+        result["filename"] = str(filename)
+    elif scratches is not None:
+        result.update(scratch_parameters(scratches))
+    return result
+
+
+def scratch_parameters(scratches) -> dict:
+    """Values to assign to a loaded BSDF's traversed parameters to swap its scratch set.
+
+    Keys are relative to the BSDF (``scratch_uv`` ...); under ``mi.traverse(scene)``
+    they carry the BSDF's prefix, e.g. ``plate.bsdf.scratch_uv``.  See
+    :func:`update_scratches`.
+    """
+    from .memory import to_tensors
+
+    return to_tensors(scratches)
+
+
+def update_scratches(params, scratches, prefix: str | None = None) -> None:
+    """Swap the scratch set of a loaded scene in place: assign and ``params.update()``.
+
+    Parameters
+    ----------
+    params : mi.SceneParameters
+        From ``mi.traverse(scene)`` (or of the BSDF itself).
+    scratches : ScratchSet
+    prefix : str, optional
+        The BSDF's key prefix (``"plate.bsdf."``); by default the one
+        ``scratch_diffraction`` BSDF found in ``params`` (an error if there are several).
+    """
+    values = scratch_parameters(scratches)
+    if prefix is None:
+        found = sorted(key[: -len("scratch_uv")] for key in params.keys() if key.endswith("scratch_uv"))
+        if len(found) != 1:
+            raise ValueError(f"expected one {PLUGIN_NAME} BSDF in the parameters, found {len(found)}; "
+                             "pass prefix=")
+        prefix = found[0]
+    for key, value in values.items():
+        params[prefix + key] = value
+    params.update()
+
+
+def _spectrum(value):
+    if isinstance(value, dict):
+        return value
+    return {"type": "spectrum", "value": float(value)}

@@ -1,0 +1,74 @@
+"""Base reflectance: conductor Fresnel for all wavelengths at once, and Mitsuba's material spectra.
+
+Mitsuba's ``mi.fresnel_conductor`` takes one ``Float`` (a single wavelength);
+the scratch BSDF needs the four wavelengths of a spectral ray together, so the
+unpolarised conductor Fresnel equations are written out here on complex pairs
+of ``mi.Spectrum`` (tested against Mitsuba's function channel by channel).
+"""
+from __future__ import annotations
+
+import drjit as dr
+
+__all__ = ["fresnel_conductor", "material_textures"]
+
+
+def fresnel_conductor(cos_theta, eta, k):
+    """Unpolarised reflectance of a conductor with complex index ``eta + i k``.
+
+    ``cos_theta`` (> 0) is the cosine of incidence (one per lane), ``eta`` and
+    ``k`` one value per wavelength.  The Fresnel equations in their real form
+    (Born & Wolf): with ``a² + b² = |η̃² - sin²θ|`` and ``a = Re sqrt(η̃² - sin²θ)``::
+
+        R_s = (a² + b² - 2a cos θ + cos²θ) / (a² + b² + 2a cos θ + cos²θ)
+        R_p = R_s (cos²θ (a² + b²) - 2a cos θ sin²θ + sin⁴θ) / (cos²θ (a² + b²) + 2a cos θ sin²θ + sin⁴θ)
+    """
+    cos_theta = dr.clip(cos_theta, 1e-6, 1.0)
+    cos2 = cos_theta * cos_theta
+    sin2 = 1.0 - cos2
+    t0 = eta * eta - k * k - sin2
+    a2b2 = dr.sqrt(dr.fma(t0, t0, 4.0 * dr.square(eta * k)))
+    a = dr.sqrt(dr.maximum(0.5 * (a2b2 + t0), 0.0))
+    t1 = a2b2 + cos2
+    t2 = 2.0 * a * cos_theta
+    r_s = (t1 - t2) / (t1 + t2)
+    t3 = dr.fma(cos2, a2b2, sin2 * sin2)
+    t4 = t2 * sin2
+    r_p = r_s * (t3 - t4) / (t3 + t4)
+    return 0.5 * (r_s + r_p)
+
+
+def material_textures(name: str):
+    """``(eta, k)`` textures of one of Mitsuba's tabulated conductors.
+
+    Raises ``ValueError`` for a name without ``data/ior/<name>.eta.spd`` in
+    Mitsuba's data folder.
+    """
+    import os
+
+    import mitsuba as mi
+
+    paths = [str(mi.file_resolver().resolve(f"data/ior/{name}.{part}.spd")) for part in ("eta", "k")]
+    if not all(os.path.isfile(p) for p in paths):
+        folder = os.path.dirname(str(mi.file_resolver().resolve("data/ior/Al.eta.spd")))
+        known = sorted({f.split(".")[0] for f in os.listdir(folder) if f.endswith(".k.spd")}) \
+            if os.path.isdir(folder) else []
+        raise ValueError(
+            f"unknown material {name!r}: use a conductor name of Mitsuba's 'conductor' plugin "
+            f"({', '.join(known[:12])}{', ...' if len(known) > 12 else ''}), 'none' for a perfect "
+            "mirror, or give 'eta' and 'k'")
+    return tuple(_regular(mi.load_dict({"type": "spectrum", "filename": p})) for p in paths)
+
+
+def _regular(texture):
+    """The irregular spectrum ``texture`` resampled every nanometre over its own range."""
+    import drjit as dr
+    import mitsuba as mi
+    import numpy as np
+
+    nodes = np.asarray(mi.traverse(texture)["wavelengths"], dtype=np.float64)
+    grid = np.arange(np.ceil(nodes.min()), np.floor(nodes.max()) + 0.5, 1.0)
+    si = dr.zeros(mi.SurfaceInteraction3f, len(grid))
+    si.wavelengths = mi.Spectrum(mi.Float(grid.astype(np.float32)))
+    values = np.asarray(texture.eval(si))[0]
+    return mi.load_dict({"type": "regular", "wavelength_min": float(grid[0]), "wavelength_max": float(grid[-1]),
+                         "values": ", ".join(f"{v:.9g}" for v in values)})

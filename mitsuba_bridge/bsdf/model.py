@@ -1,0 +1,217 @@
+"""The scratch BRDF, its sampling density and its sampler on Dr.Jit arrays (MODEL.md §4, §5).
+
+    f_r = F |U0(ξ) + Σ_k S_k(ξ)|² / (λ² π σ²)              (coherent)
+    f_r = F [|U0|² (1 - ρ) + Σ_k |S'_k|²] / (λ² π σ²)        (incoherent)
+
+plus an optional Lambertian base ρ_d / π.  Inputs are read from the
+SurfaceInteraction only through ``uv``, ``dp_du``, ``dp_dv``, ``sh_frame``, ``wi``
+and ``wavelengths`` (and whatever the optional textures read).  Units inside:
+micrometres.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import drjit as dr
+import mitsuba as mi
+
+from . import sampling
+from .complexmath import Cx
+from .fresnel import fresnel_conductor
+from .lookup import Grid, for_each_segment, jacobian, segment_at
+from .segment import amplitude, frequencies
+from .window import mirror_lobe
+
+__all__ = ["Model", "WINDOW_RADIUS_SIGMAS"]
+
+#: Segments farther than this from the shading point are ignored (amplitude e^-8).
+WINDOW_RADIUS_SIGMAS = 4.0
+#: The share of specular samples spent on scratch lines is 2r/(1 + 2r), r = (scratch energy) / A_s, at most this.
+MAX_SCRATCH_SHARE = 0.9
+#: Shortest wavelength accepted (µm); guards hand-made interactions with zeroed wavelengths.
+MIN_WAVELENGTH_UM = 0.01
+
+
+@dataclass
+class Model:
+    """Everything the kernels read; rebuilt by the plugin when a parameter changes."""
+
+    grid: Grid
+    sigma: object  #: opaque mi.Float, σ in µm
+    micrometres_per_unit: object  #: opaque mi.Float
+    coherent: bool
+    eta: object = None  #: mi.Texture or None (perfect mirror)
+    k: object = None
+    diffuse: object = None  #: mi.Texture or None
+
+    # ------------------------------------------------------------- pieces
+    def _reflectance(self, si, cos_theta, active):
+        if self.eta is None:
+            return mi.Spectrum(1.0)
+        return fresnel_conductor(cos_theta, self.eta.eval(si, active), self.k.eval(si, active))
+
+    def _hero(self, si):
+        """Per-lane quantities that do not depend on ω_o."""
+        wavelength = mi.Spectrum(dr.maximum(mi.Spectrum(si.wavelengths) * 1e-3, MIN_WAVELENGTH_UM))
+        return wavelength, jacobian(si, self.micrometres_per_unit)
+
+    def _strategy_weights(self, si, energy, cos_i, has_glossy, has_diffuse, active):
+        """(diffuse, scratch, mirror) sample shares; depend on ω_i and the hero wavelength only."""
+        has_diffuse = has_diffuse and self.diffuse is not None
+        zero = mi.Float(0.0)
+        if not has_glossy:  # only the diffuse component is asked for (if there is one)
+            return mi.Float(1.0 if has_diffuse else 0.0), zero, zero
+        share = sampling_share(energy, self.sigma)
+        if has_diffuse:
+            rho = self.diffuse.eval(si, active)[0]
+            specular = self._reflectance(si, cos_i, active)[0]
+            q_d = dr.select(rho > 0.0, rho / dr.maximum(rho + specular, 1e-12), 0.0)
+        else:
+            q_d = zero
+        return q_d, (1.0 - q_d) * share, (1.0 - q_d) * (1.0 - share)
+
+    # --------------------------------------------------------- evaluation
+    def evaluate(self, si, wo, *, has_glossy=True, has_diffuse=True, want_value=True, want_pdf=True,
+                 active=True):
+        """``(f_r cos θ_o, pdf)`` (either may be ``None`` when not wanted)."""
+        wi = si.wi
+        active = mi.Bool(active) & (wi.z > 0.0) & (wo.z > 0.0)
+        wavelength, jac = self._hero(si)
+        sigma = self.sigma
+        coherent = self.coherent
+
+        # ---- spatial frequency and depth phase, per wavelength
+        spectrum = mi.Spectrum
+        xi_x = spectrum((wi.x + wo.x) / wavelength)
+        xi_y = spectrum((wi.y + wo.y) / wavelength)
+        k_z = spectrum((2.0 * math.pi) * (wi.z + wo.z) / wavelength)
+        lobe = spectrum(mirror_lobe(xi_x * xi_x + xi_y * xi_y, sigma))
+
+        # ---- hero-wavelength quantities of the sampling density
+        lam0 = wavelength[0]
+        kz0 = (4.0 * math.pi) * wi.z / lam0  # κ / D at γ_o = γ_i
+        xi0_x, xi0_y = xi_x[0], xi_y[0]
+
+        zero_s, zero_f = dr.zeros(mi.Spectrum), dr.zeros(mi.Float)
+        field = (lobe, zero_s) if coherent else (zero_s, zero_f)
+
+        def body(segment, piece, state):
+            (a, b), energy, density = state
+            if want_value and has_glossy:
+                s = amplitude(segment, xi_x, xi_y, k_z, sigma, coherent=coherent)
+                if coherent:
+                    a, b = spectrum(a + s.re), spectrum(b + s.im)
+                else:
+                    a, b = spectrum(a + s.abs2()), b + sampling.window_energy(segment, sigma)
+            if want_pdf and has_glossy:
+                weight = sampling.selection_weight(segment, kz0 * segment.depth, sigma, coherent)
+                # (never in place: the inputs of a symbolic branch must stay untouched)
+                energy = energy + weight
+                density = density + weight * self._scratch_density(segment, xi0_x, xi0_y, wi, lam0, kz0)
+            return (a, b), energy, density
+
+        (a, b), energy, density = for_each_segment(
+            self.grid, jac, WINDOW_RADIUS_SIGMAS * sigma, (field, zero_f, zero_f), body, active & has_glossy)
+
+        value = pdf = None
+        if want_value:
+            value = self._value(si, wo, wavelength, lobe, a, b, has_glossy, has_diffuse, active)
+        if want_pdf:
+            q_d, q_s, q_m = self._strategy_weights(si, energy, wi.z, has_glossy, has_diffuse, active)
+            xi0_2 = xi0_x * xi0_x + xi0_y * xi0_y
+            scratch = dr.select(energy > 0.0, density / dr.maximum(energy, 1e-30), 0.0)
+            specular = (q_m * sampling.pdf_mirror(xi0_2, sigma) + q_s * scratch) * wo.z / (lam0 * lam0)
+            pdf = dr.select(active, specular + q_d * wo.z * (1.0 / math.pi), 0.0)
+            pdf = dr.select(dr.isfinite(pdf), pdf, 0.0)
+        return value, pdf
+
+    def _scratch_density(self, segment, xi_x, xi_y, wi, lam0, kz0):
+        """``p_k(ξ)`` of the scratch-line sampler of one segment (hero wavelength)."""
+        nu_par, nu_perp = frequencies(segment, xi_x, xi_y)
+        lo, hi = self._band(segment, wi, lam0)
+        return (sampling.pdf_along(nu_par, self.sigma)
+                * sampling.pdf_across(nu_perp, segment, kz0 * segment.depth, lo, hi))
+
+    @staticmethod
+    def _band(segment, wi, lam0):
+        """Visible ν⊥ band: |λ ν⊥ - ω_i,t · n| < 1."""
+        wi_n = wi.y * segment.dx - wi.x * segment.dy
+        return (wi_n - 1.0) / lam0, (wi_n + 1.0) / lam0
+
+    def _value(self, si, wo, wavelength, lobe, a, b, has_glossy, has_diffuse, active):
+        sigma = self.sigma
+        value = dr.zeros(mi.Spectrum)
+        if has_glossy:
+            if self.coherent:
+                intensity = Cx(a, b).abs2()
+            else:  # a: Σ|S'_k|², b: Σ ε_k (scratch area in the squared window)
+                covered = dr.minimum(b / (math.pi * sigma * sigma), 1.0)
+                intensity = lobe * lobe * (1.0 - covered) + a
+            half = dr.normalize(si.wi + wo)
+            fresnel = self._reflectance(si, dr.dot(si.wi, half), active)
+            value = value + fresnel * intensity / (wavelength * wavelength * (math.pi * sigma * sigma))
+        if has_diffuse and self.diffuse is not None:
+            value = value + self.diffuse.eval(si, active) * (1.0 / math.pi)
+        value = dr.select(active, value * wo.z, 0.0)
+        return dr.select(dr.isfinite(value), value, 0.0)
+
+    # ----------------------------------------------------------- sampling
+    def sample(self, si, sample1, sample2, *, has_glossy=True, has_diffuse=True, active=True):
+        """``(wo, pdf, value, diffuse_chosen)``; ``value`` is f_r cos θ_o (not divided by the pdf)."""
+        wi = si.wi
+        active = mi.Bool(active) & (wi.z > 0.0)
+        wavelength, jac = self._hero(si)
+        sigma = self.sigma
+        lam0 = wavelength[0]
+        kz0 = (4.0 * math.pi) * wi.z / lam0
+
+        # ---- one pass: total scratch energy and a segment drawn in proportion (reservoir)
+        def body(segment, piece, state):
+            energy, chosen, u = state
+            weight = sampling.selection_weight(segment, kz0 * segment.depth, sigma, self.coherent)
+            energy = energy + weight
+            p = dr.select(energy > 0.0, weight / energy, 0.0)
+            pick = u < p
+            chosen = dr.select(pick, piece, chosen)
+            u = dr.select(pick, u / dr.maximum(p, 1e-30), (u - p) / dr.maximum(1.0 - p, 1e-30))
+            return energy, chosen, dr.clip(u, 0.0, 0.99999994)
+
+        energy, chosen, u = for_each_segment(
+            self.grid, jac, WINDOW_RADIUS_SIGMAS * sigma,
+            (dr.zeros(mi.Float), dr.zeros(mi.UInt32), mi.Float(sample1)), body, active & has_glossy)
+
+        # ---- strategy from the left-over uniform (independent of the segment drawn)
+        q_d, q_s, q_m = self._strategy_weights(si, energy, wi.z, has_glossy, has_diffuse, active)
+        diffuse = active & (u < q_d)
+        scratch = active & ~diffuse & (u < q_d + q_s)
+
+        # ---- scratch line of the chosen segment
+        segment = segment_at(self.grid, jac, chosen, scratch)
+        lo, hi = self._band(segment, wi, lam0)
+        nu_par = sampling.sample_along(sample2.x, sigma)
+        nu_perp = sampling.sample_across(sample2.y, segment, kz0 * segment.depth, lo, hi)
+        line_x = nu_par * segment.dx - nu_perp * segment.dy
+        line_y = nu_par * segment.dy + nu_perp * segment.dx
+
+        # ---- mirror lobe
+        mirror_x, mirror_y = sampling.sample_mirror(sample2, sigma)
+        xi_x = dr.select(scratch, line_x, mirror_x)
+        xi_y = dr.select(scratch, line_y, mirror_y)
+
+        # ---- ξ → direction; diffuse base: cosine hemisphere
+        out_x = lam0 * xi_x - wi.x
+        out_y = lam0 * xi_y - wi.y
+        sin2 = out_x * out_x + out_y * out_y
+        specular = mi.Vector3f(out_x, out_y, dr.safe_sqrt(1.0 - sin2))
+        wo = dr.select(diffuse, mi.warp.square_to_cosine_hemisphere(sample2), specular)
+        active &= diffuse | (sin2 < 1.0)
+
+        value, pdf = self.evaluate(si, wo, has_glossy=has_glossy, has_diffuse=has_diffuse, active=active)
+        return wo, pdf, value, diffuse
+
+
+def sampling_share(energy, sigma):
+    """Share of specular samples for the scratch lines: ``2r / (1 + 2r)`` capped, r = energy / (πσ²)."""
+    r = energy / (math.pi * sigma * sigma)
+    return dr.select(energy > 0.0, dr.minimum(2.0 * r / (1.0 + 2.0 * r), MAX_SCRATCH_SHARE), 0.0)

@@ -1,0 +1,273 @@
+"""The ``scratch_diffraction`` Mitsuba plugin (thin class over :mod:`.model`).
+
+``mi.BSDF`` is the class of the active variant, so the plugin class is built
+per variant by :func:`plugin_class` after ``mi.set_variant``.
+"""
+from __future__ import annotations
+
+import drjit as dr
+import mitsuba as mi
+
+from .. import scratch
+from . import memory, parameters
+from .fresnel import material_textures
+from .lookup import Grid
+from .model import Model
+from .tables import build_tables
+
+__all__ = ["plugin_class", "MANUAL"]
+
+MANUAL = """Wave-optical scratch BSDF (``scratch_diffraction``)
+
+Werner et al., "Scratch iridescence" (SIGGRAPH Asia 2017): a metal (or perfect
+mirror) carrying microscopic straight scratches, rendered with scalar
+diffraction inside a Gaussian coherence window around each shading point.
+
+.. list-table::
+   * - Parameter
+     - Type
+     - Description
+   * - filename
+     - string
+     - Scratch file, format v1 (docs/scratch-format.md).  Alternatively the
+       eight in-memory keys below; neither gives an unscratched surface.
+   * - scratch_uv, scratch_offsets, scratch_width, scratch_depth,
+       scratch_profile, scratch_width_variation, scratch_depth_variation,
+       scratch_seed
+     - tensors
+     - The format-v1 arrays in memory (TensorXf64, TensorXi64, TensorXf64,
+       TensorXf64, TensorXu8, TensorXf64, TensorXf64, TensorXu);
+       ``mitsuba_bridge.bsdf.plugin_dict`` builds them.  Exposed by
+       ``mi.traverse`` under the same names: assigning all eight and calling
+       ``params.update()`` swaps the scratch set without reloading the scene.
+   * - coherence_diameter
+     - float
+     - Coherence diameter δ_c in metres (σ = δ_c / 6).  Default 30e-6
+       (σ = 5 µm, a mirror lobe of ≈ 0.7° at 550 nm, like the sun's disc).
+       Traversable.
+   * - unit_scale
+     - float
+     - Metres per scene unit (default 1).  Scratch positions are UV
+       coordinates; the shading point's dp/du, dp/dv times unit_scale map
+       them to metres.  Traversable.
+   * - material
+     - string
+     - Base conductor, any name of Mitsuba's ``conductor`` plugin (Al, Ag, Au,
+       Cu, Cr, ...), or ``none`` for a perfect mirror (F = 1).  Default Al.
+   * - eta, k
+     - spectrum or texture
+     - Explicit complex index of refraction instead of ``material``.
+   * - diffuse_reflectance
+     - spectrum or texture
+     - Optional Lambertian base ρ_d added incoherently (default: none).  It is
+       not energy-coupled to the metal: keep ρ_d <= 1 - F for conservation.
+   * - coherent
+     - boolean
+     - Coherent (default) or incoherent superposition of the scratches
+       (incoherent: no interference between scratches, no grating orders).
+   * - cell_size
+     - float
+     - UV size of the lookup grid's cells; 0 (default) picks it from the
+       scratch density.  A hint for very dense or very sparse sets only.
+
+The model.  Each evaluation is one coherence window w = exp(-|x - x0|²/2σ²) at
+the shading point x0.  The reflected far field is the mirror lobe of the
+window plus, for every straight scratch segment within 4σ, its transform:
+the window integrated along the segment between its ends and across its
+rectangular or V-shaped cross-section, both exactly (complex error functions
+through the Faddeeva function; the window's curvature across wide or offset
+scratches included, which MODEL.md's complex-frequency form only linearises),
+depth and width following the file's simplex noise.  f_r = F |U|² / (λ² π σ²),
+F the spectral conductor Fresnel at the half vector; coherent mode adds the
+amplitudes (interference, grating orders), incoherent mode the intensities.
+Without scratches in the window the BSDF is the window's Gaussian mirror lobe
+(angular standard deviation λ / (2√2 π σ), 0.7° at 550 nm by default) times F:
+a glossy lobe, never a delta, so scratched and unscratched points are one
+BSDF; its albedo is F.  Energy: light only moves between directions for
+shallow scratches; the depth phase 2π(γ_i + γ_o)d/λ depends on the outgoing
+direction, so deep grooves can reflect a few percent more than they receive
+(the scalar model itself, not this implementation: docs/bsdf.md).  Scratch
+crossings add their transfer functions (the paper's limitation).  Scratches
+are UV polylines (mesh UVs required); phases are formed relative to x0, so
+float32 suffices at any object size.  Renders need an unpolarised spectral JIT
+variant (llvm_ad_spectral, cuda_ad_spectral): diffraction colours do not exist
+in RGB.  Sampling: mirror lobe, scratch lines (segment drawn in proportion to
+its diffracted energy) and the diffuse base, combined with the balance
+heuristic; pdf and weights use the first (hero) wavelength.
+
+.. code-block:: python
+
+    import mitsuba as mi, mitsuba_bridge
+    mi.set_variant("llvm_ad_spectral")
+    mitsuba_bridge.register_plugins()
+    bsdf = mi.load_dict({"type": "scratch_diffraction", "filename": "plate.npz",
+                         "coherence_diameter": 30e-6, "unit_scale": 0.01, "material": "Al"})
+    # or, without a file: mi.load_dict(mitsuba_bridge.bsdf.plugin_dict(scratch_set))
+"""
+
+_classes: dict[str, type] = {}
+
+
+def plugin_class() -> type:
+    """The plugin class for the active variant (created once per variant)."""
+    variant = mi.variant()
+    if variant not in _classes:
+        _classes[variant] = _make_class()
+    return _classes[variant]
+
+
+def _check_variant() -> None:
+    variant = mi.variant()
+    if not mi.is_spectral or mi.is_polarized or variant.startswith("scalar"):
+        raise ValueError(
+            f"the active Mitsuba variant is '{variant}', but diffraction colours need an unpolarised "
+            "spectral JIT variant: call mi.set_variant('llvm_ad_spectral') (CPU) or "
+            "mi.set_variant('cuda_ad_spectral') (NVIDIA GPU) before loading the scene")
+
+
+def _read_scratches(props):
+    """The scratch set named by the properties (file or in-memory keys), validated."""
+    in_memory = [key for key in memory.KEYS if key in props]
+    filename = props.get("filename", "")
+    if filename and in_memory:
+        raise ValueError("give either 'filename' or the in-memory keys scratch_*, not both")
+    if filename:
+        path = str(mi.file_resolver().resolve(filename))
+        try:
+            return scratch.load(path)
+        except FileNotFoundError:
+            raise ValueError(f"parameter 'filename': scratch file '{path}' does not exist") from None
+        except OSError as error:
+            raise ValueError(f"parameter 'filename': cannot read scratch file '{path}': {error}") from None
+    if in_memory:
+        return memory.from_values({key: props[key] for key in in_memory})
+    return scratch.ScratchSet.empty()
+
+
+def _positive(props, name, default):
+    value = float(props.get(name, default))
+    if not value > 0.0 or value == float("inf"):
+        raise ValueError(f"parameter '{name}' must be a positive length in metres, got {value!r}")
+    return value
+
+
+def _make_class() -> type:
+    class ScratchDiffraction(mi.BSDF):
+        __doc__ = MANUAL
+
+        def __init__(self, props):
+            _check_variant()
+            mi.BSDF.__init__(self, props)
+            try:
+                self._configure(props)
+            except ValueError as error:  # ScratchFormatError included: it names file and field
+                raise ValueError(f"{parameters.PLUGIN_NAME}: {error}") from error
+
+        def _configure(self, props):
+            self.coherence_diameter = dr.opaque(mi.Float, _positive(
+                props, "coherence_diameter", parameters.DEFAULT_COHERENCE_DIAMETER_M))
+            self.unit_scale = dr.opaque(mi.Float, _positive(props, "unit_scale", 1.0))
+            self.cell_size = float(props.get("cell_size", 0.0))
+            self.coherent = bool(props.get("coherent", True))
+
+            has_eta, has_k = "eta" in props, "k" in props
+            if has_eta != has_k:
+                raise ValueError("parameters 'eta' and 'k' go together")
+            if has_eta and "material" in props:
+                raise ValueError("give either 'material' or 'eta' and 'k', not both")
+            if has_eta:
+                self.eta, self.k = props.get_texture("eta"), props.get_texture("k")
+                self.material = "custom"
+            else:
+                self.material = str(props.get("material", parameters.DEFAULT_MATERIAL))
+                self.eta, self.k = (None, None) if self.material.lower() == "none" \
+                    else material_textures(self.material)
+            self.diffuse = props.get_texture("diffuse_reflectance") if "diffuse_reflectance" in props else None
+
+            glossy = mi.BSDFFlags.GlossyReflection | mi.BSDFFlags.FrontSide
+            diffuse = mi.BSDFFlags.DiffuseReflection | mi.BSDFFlags.FrontSide
+            self.m_components = [glossy] + ([diffuse] if self.diffuse is not None else [])
+            self.m_flags = glossy | (diffuse if self.diffuse is not None else 0)
+
+            scratches = _read_scratches(props)
+            self.scratch_values = memory.to_tensors(scratches)
+            self._set_scratches(scratches)
+
+        def _set_scratches(self, scratches):
+            self.tables = build_tables(scratches, self.cell_size)
+            self.scratch_count = scratches.count
+            self.grid = Grid.upload(self.tables)
+            self._rebuild_model()
+
+        def _rebuild_model(self):
+            sigma = dr.opaque(mi.Float, dr.slice(self.coherence_diameter) * (1e6 / 6.0))
+            scale = dr.opaque(mi.Float, dr.slice(self.unit_scale) * 1e6)
+            self.model = Model(grid=self.grid, sigma=sigma, micrometres_per_unit=scale,
+                               coherent=self.coherent, eta=self.eta, k=self.k, diffuse=self.diffuse)
+
+        # ------------------------------------------------------ interface
+        def _lobes(self, ctx):
+            return (ctx.is_enabled(mi.BSDFFlags.GlossyReflection, 0),
+                    self.diffuse is not None and ctx.is_enabled(mi.BSDFFlags.DiffuseReflection, 1))
+
+        def eval(self, ctx, si, wo, active=True):
+            glossy, diffuse = self._lobes(ctx)
+            return self.model.evaluate(si, wo, has_glossy=glossy, has_diffuse=diffuse,
+                                       want_pdf=False, active=active)[0]
+
+        def pdf(self, ctx, si, wo, active=True):
+            glossy, diffuse = self._lobes(ctx)
+            return self.model.evaluate(si, wo, has_glossy=glossy, has_diffuse=diffuse,
+                                       want_value=False, active=active)[1]
+
+        def eval_pdf(self, ctx, si, wo, active=True):
+            glossy, diffuse = self._lobes(ctx)
+            return self.model.evaluate(si, wo, has_glossy=glossy, has_diffuse=diffuse, active=active)
+
+        def sample(self, ctx, si, sample1, sample2, active=True):
+            glossy, diffuse = self._lobes(ctx)
+            wo, pdf, value, chose_diffuse = self.model.sample(
+                si, sample1, sample2, has_glossy=glossy, has_diffuse=diffuse, active=active)
+            bs = dr.zeros(mi.BSDFSample3f)
+            bs.wo = wo
+            bs.pdf = pdf
+            bs.eta = 1.0
+            bs.sampled_type = mi.UInt32(dr.select(chose_diffuse, +mi.BSDFFlags.DiffuseReflection,
+                                                  +mi.BSDFFlags.GlossyReflection))
+            bs.sampled_component = mi.UInt32(dr.select(chose_diffuse, 1, 0))
+            weight = dr.select(pdf > 0.0, value / dr.maximum(pdf, 1e-30), 0.0)
+            return bs, dr.select(dr.isfinite(weight), weight, 0.0)
+
+        # -------------------------------------------------- parameters
+        def traverse(self, callback):
+            flags = mi.ParamFlags.NonDifferentiable
+            for key, value in self.scratch_values.items():
+                callback.put(key, value, flags)
+            callback.put("coherence_diameter", self.coherence_diameter, flags)
+            callback.put("unit_scale", self.unit_scale, flags)
+            for name, texture in (("eta", self.eta), ("k", self.k), ("diffuse_reflectance", self.diffuse)):
+                if texture is not None:
+                    callback.put(name, texture, mi.ParamFlags.Differentiable)
+
+        def parameters_changed(self, keys):
+            keys = set(keys)
+            if not keys or keys & set(memory.KEYS):
+                try:
+                    scratches = memory.from_values(self.scratch_values)
+                except scratch.ScratchFormatError as error:
+                    raise ValueError(f"{parameters.PLUGIN_NAME}: {error}") from error
+                self._set_scratches(scratches)
+            else:
+                self._rebuild_model()
+
+        def to_string(self):
+            t = self.tables
+            return (f"ScratchDiffraction[scratches={self.scratch_count}, pieces={t.piece_count}, "
+                    f"grid={t.shape[0]}x{t.shape[1]} cells of {t.cell_size:.3g} UV, "
+                    f"coherence_diameter={dr.slice(self.coherence_diameter):.3g} m, "
+                    f"unit_scale={dr.slice(self.unit_scale):.3g} m, material={self.material}, "
+                    f"diffuse={'yes' if self.diffuse is not None else 'no'}, "
+                    f"{'coherent' if self.coherent else 'incoherent'}]")
+
+    ScratchDiffraction.__name__ = "ScratchDiffraction"
+    return ScratchDiffraction

@@ -1,0 +1,73 @@
+"""Windowed cross-section transforms of the scratch profiles (MODEL.md §3.1, exact form).
+
+``A(ν) = ∫ w⊥(x) (exp(iκ p(x - a⊥)) - 1) exp(-2πiνx) dx`` across a scratch whose
+centre line lies at signed distance ``a⊥`` from the shading point, with the
+window's cross factor ``w⊥(x) = exp(-x²/2σ²)``, the normalised depth profile
+``p`` in [0, 1] on ``|x - a⊥| <= W/2`` and ``κ = k_z D``.
+
+MODEL.md §3 approximates the window across the scratch by its value and slope
+at the centre line (``e^{-a⊥²/2σ²} G(ν⊥ - i a⊥/(2πσ²))``); it drops the
+window's curvature, which costs ≈ 10 % (relative L2 of f_r) on an offset
+2 µm V-groove at σ = 2 µm and up to ≈ 30 % between grating orders
+(tests/bsdf/test_reference.py).  Here each linear piece of the profile has a
+linear phase, so its windowed transform is a partial Gaussian integral at a
+shifted frequency, :func:`.window.window_integral`: the transform is exact for
+any width, at the price of two complex error functions per piece edge.
+
+``coherent=False`` gives the transform of ``exp(iκp)`` over the footprint
+instead (the scratch's own reflection, used by the incoherent mode, §4).
+Lengths in µm, frequencies in 1/µm; ``κ`` is real (one value per wavelength).
+"""
+from __future__ import annotations
+
+import math
+
+import drjit as dr
+
+from .complexmath import Cx, expi
+from .window import window_integral
+
+__all__ = ["rectangular", "triangular", "energy_rectangular", "energy_triangular", "MIN_WIDTH_UM"]
+
+#: Narrower scratches are treated as this wide (guards the facet slope 1/W).
+MIN_WIDTH_UM = 1e-4
+
+
+def rectangular(a_perp, width, nu, kappa, sigma, coherent: bool = True) -> Cx:
+    """Flat-bottomed groove: ``(e^{iκ} - 1) ∫_{a⊥-W/2}^{a⊥+W/2} w⊥ e^{-2πiνx} dx``."""
+    half = 0.5 * width
+    phase = expi(kappa)
+    if coherent:
+        phase = phase - 1.0
+    return window_integral(a_perp - half, a_perp + half, nu, sigma, False) * phase
+
+
+def triangular(a_perp, width, nu, kappa, sigma, coherent: bool = True) -> Cx:
+    """V-groove ``p(u) = 1 - 2|u|/W``: two facets of slope ±2D/W.
+
+    The facet on ``[a⊥ - W/2, a⊥]`` has phase ``κ - τ + (2κ/W) x`` with ``τ = 2κa⊥/W``,
+    i.e. frequency ``ν - κ/(πW)``; the other facet mirrors it.
+    """
+    width = dr.maximum(width, MIN_WIDTH_UM)
+    half = 0.5 * width
+    shift = kappa / (math.pi * width)  # facet frequency offset, 1/µm
+    tilt = (2.0 * math.pi) * shift * a_perp
+    left = window_integral(a_perp - half, a_perp, nu - shift, sigma, False) * expi(kappa - tilt)
+    right = window_integral(a_perp, a_perp + half, nu + shift, sigma, False) * expi(kappa + tilt)
+    result = left + right
+    if coherent:
+        result = result - window_integral(a_perp - half, a_perp + half, nu, sigma, False)
+    return result
+
+
+def energy_rectangular(kappa):
+    """``(1/W) ∫ |e^{iκp} - 1|² du = 4 sin²(κ/2)`` for the flat bottom."""
+    return 4.0 * dr.square(dr.sin(0.5 * kappa))
+
+
+def energy_triangular(kappa):
+    """``(1/W) ∫ |e^{iκp} - 1|² du = 2 (1 - sin κ / κ)`` for the V-groove."""
+    kappa2 = kappa * kappa
+    # 1 - sin κ / κ without cancellation for small κ (next series term < 1e-7).
+    series = kappa2 * (1.0 / 6.0) * (1.0 - kappa2 * (1.0 / 20.0))
+    return 2.0 * dr.select(kappa2 < 0.09, series, 1.0 - dr.sin(kappa) / kappa)

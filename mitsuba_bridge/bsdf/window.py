@@ -1,0 +1,82 @@
+"""The Gaussian coherence window: mirror lobe and partial window integrals (MODEL.md §2, §3.2).
+
+All lengths in micrometres, frequencies in 1/µm.  ``σ`` is the window's
+standard deviation (σ = δ_c / 6); the window is ``w(x) = exp(-|x - x0|² / 2σ²)``.
+In a scratch's own frame the window is a product of a Gaussian along and a
+Gaussian across the scratch, so every scratch transform is built from the one
+function :func:`window_integral` (along: between the segment's ends; across:
+between the edges of each linear piece of the profile).
+"""
+from __future__ import annotations
+
+import math
+
+import drjit as dr
+
+from .complexmath import Cx, expi
+from .faddeeva import faddeeva
+
+__all__ = ["mirror_lobe", "window_integral", "END_CLAMP_SIGMAS", "END_NEGLIGIBLE_SIGMAS"]
+
+#: Segment end positions are clamped to ±8σ (the window is e^-32 there).
+END_CLAMP_SIGMAS = 8.0
+#: An end farther than 6σ from the foot point contributes at most e^-18 of the
+#: window's amplitude: its complex-erf term is skipped (MODEL.md §3.2 keeps the
+#: finite form for every end within 4σ).
+END_NEGLIGIBLE_SIGMAS = 6.0
+
+_SQRT_HALF_PI = math.sqrt(0.5 * math.pi)
+
+
+def mirror_lobe(xi2, sigma):
+    """``U0(ξ) = 2πσ² exp(-2π²σ²|ξ|²)`` of the unscratched window; ``xi2 = |ξ|²``."""
+    sigma2 = sigma * sigma
+    return (2.0 * math.pi) * sigma2 * dr.exp((-2.0 * math.pi ** 2) * sigma2 * xi2)
+
+
+def _end_term(t, nu, sigma):
+    """``s g(t) w(s b/(√2σ) + i|t|/(√2σ))`` with ``s = -1`` for t >= 0, else +1.
+
+    With it ``Φ(t) = σ√(π/2) [end_term(t) + 2 e^{-2π²σ²ν²} H(t)]`` for both signs
+    of ``t`` (H: unit step), which is MODEL.md's pair of Faddeeva forms.
+    """
+    sign = dr.select(t >= 0.0, -1.0, 1.0)
+    inv_scale = dr.rcp(math.sqrt(2.0) * sigma)
+    b = (2.0 * math.pi) * nu * (sigma * sigma)
+    w = faddeeva(Cx(sign * b * inv_scale, dr.abs(t) * inv_scale))
+    g = expi((-2.0 * math.pi) * nu * t) * dr.exp(-0.5 * dr.square(t / sigma))
+    return g * w * sign
+
+
+def _skippable_end_term(t, nu, sigma):
+    """:func:`_end_term`, skipped (zero) for whole SIMD packets of far ends."""
+    zero = dr.zeros(type(nu))
+    near = dr.abs(t) < END_NEGLIGIBLE_SIGMAS * sigma
+
+    def compute(t, nu):
+        term = _end_term(t, nu, sigma)
+        return term.re, term.im
+
+    re, im = dr.if_stmt((t, nu), near, compute, lambda t, nu: (zero, zero), label="scratch_end")
+    return Cx(re, im)
+
+
+def window_integral(t0, t1, nu, sigma, skip_far_ends: bool = True):
+    """``Φ(t1; ν) - Φ(t0; ν) = ∫_{t0}^{t1} exp(-τ²/2σ²) exp(-2πiντ) dτ`` (complex).
+
+    ``Φ(t; ν) = ∫_{-∞}^{t} exp(-τ²/2σ²) exp(-2πiντ) dτ`` (MODEL.md §3.2), for
+    ``t0 <= t1`` measured from the foot point of the shading point on the line
+    of integration.  The full-line terms of both ends cancel analytically, so
+    there is no cancellation when both ends lie on the same side.  With
+    ``skip_far_ends`` the complex-erf term of an end beyond 6σ is skipped for
+    whole SIMD packets (worth its branch for segment ends, not for the edges of
+    a scratch's cross-section, which are always near).
+    """
+    limit = END_CLAMP_SIGMAS * sigma
+    t0 = dr.clip(t0, -limit, limit)
+    t1 = dr.clip(t1, -limit, limit)
+    steps = dr.select(t1 >= 0.0, 1.0, 0.0) - dr.select(t0 >= 0.0, 1.0, 0.0)
+    line = 2.0 * dr.exp((-2.0 * math.pi ** 2) * (sigma * sigma) * nu * nu) * steps
+    end_term = _skippable_end_term if skip_far_ends else _end_term
+    result = end_term(t1, nu, sigma) - end_term(t0, nu, sigma) + line
+    return result * (_SQRT_HALF_PI * sigma)

@@ -1,0 +1,29 @@
+"""Variant and plugin registration for the BSDF tests (llvm_ad_spectral: the CPU JIT variant).
+
+The variant is set when pytest collects this folder, so that test modules may
+use Mitsuba types in parametrisations; the fixtures restore it after tests
+that switch variants.
+"""
+import mitsuba as mi
+import pytest
+
+import mitsuba_bridge
+
+VARIANT = "llvm_ad_spectral"
+mi.set_variant(VARIANT)
+mitsuba_bridge.register_plugins()
+
+
+@pytest.fixture(scope="session")
+def variant():
+    return VARIANT
+
+
+@pytest.fixture(autouse=True)
+def spectral_variant(variant):
+    """Every BSDF test starts and ends in the spectral LLVM variant with the plugins registered."""
+    if mi.variant() != variant:
+        mi.set_variant(variant)
+    yield
+    if mi.variant() != variant:
+        mi.set_variant(variant)

@@ -1,0 +1,98 @@
+"""The numpy side: segment table, loose UV grid, in-memory parameters."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mitsuba_bridge.bsdf import memory
+from mitsuba_bridge.bsdf.tables import MAX_PIECE_UV, TARGET_PER_CELL, build_tables
+from mitsuba_bridge.scratch import Gaussian, Profile, ScratchFormatError, ScratchSet, random_scratches, subdivide
+
+
+@pytest.fixture(scope="module")
+def plate() -> ScratchSet:
+    return random_scratches(400, seed=5, width=Gaussian(4e-6, 1.3e-6), depth=Gaussian(250e-9, 80e-9),
+                            vertices=4, curvature=2.0, depth_variation=(1.1, 0.04), profile=Profile.TRIANGULAR)
+
+
+def start_points(tables):
+    rows = tables.segments.astype(np.float64)
+    return rows[:, 0:2] + rows[:, 2:4], rows[:, 4:6]
+
+
+def test01_every_piece_lies_in_the_cell_of_its_midpoint(plate):
+    t = build_tables(plate)
+    a, e = start_points(t)
+    cells = np.clip(np.floor((a + 0.5 * e - t.origin) / t.cell_size).astype(int), 0, np.array(t.shape) - 1)
+    index = cells[:, 1] * t.shape[0] + cells[:, 0]
+    expected = np.repeat(np.arange(t.shape[0] * t.shape[1]), np.diff(t.cell_start.astype(np.int64)))
+    assert np.array_equal(index, expected)
+    # every point of a piece is within the query margin of its cell
+    assert np.abs(e).max() / 2 <= t.margin * t.cell_size
+    assert np.abs(e).max() <= min(t.cell_size, MAX_PIECE_UV) * (1 + 1e-6)
+
+
+def test02_pieces_cover_the_scratches_exactly_once(plate):
+    t = build_tables(plate)
+    segments = subdivide(plate)
+    kept = (segments.width > 0) & (segments.depth > 0)
+    assert kept.sum() < len(segments)  # D[1.1, ...] pinches some pieces shut: they are dropped
+    a, e = start_points(t)
+    assert np.hypot(*e.T).sum() == pytest.approx(segments.length[kept].sum(), rel=1e-6)
+    assert np.all(t.segments[:, 6] > 0) and np.all(t.segments[:, 7] < 0)  # µm widths; V-grooves negative
+
+
+def test03_start_points_keep_float64_accuracy_as_float32_pairs():
+    uv = np.array([[0.123456789012345, 0.987654321098765], [0.123456789112345, 0.987654321098765]])
+    t = build_tables(ScratchSet.from_polylines([uv], width=1e-6, depth=1e-7))
+    a = t.segments[0, 0:2].astype(np.float64) + t.segments[0, 2:4].astype(np.float64)
+    assert np.abs(a - uv[0]).max() < 1e-14
+    assert abs(t.segments[0, 4] - 1e-10) < 1e-16
+
+
+def test04_empty_and_degenerate_sets_give_padded_tables():
+    for scratches in (ScratchSet.empty(),
+                      ScratchSet.from_polylines([np.array([[0.3, 0.3], [0.3, 0.3]])], width=1e-6, depth=1e-7)):
+        t = build_tables(scratches)
+        assert t.piece_count == 0 and t.segments.shape == (1, 8) and len(t.cell_start) == 2
+        assert t.cell_start[-1] == 0
+
+
+def test05_cell_size_hint_is_rounded_up_to_a_power_of_two(plate):
+    t = build_tables(plate, cell_size=0.003)
+    assert t.cell_size == 2.0 ** -8
+    assert np.abs(start_points(t)[1]).max() <= t.cell_size * (1 + 1e-6)
+
+
+def test06_automatic_cell_size_keeps_occupied_cells_small(plate):
+    t = build_tables(plate)
+    starts = t.cell_start.astype(np.int64)
+    counts = np.diff(starts)
+    assert counts[counts > 0].mean() <= TARGET_PER_CELL
+    assert t.piece_count <= 4 * len(subdivide(plate)) + 2 ** 20
+
+
+def test07_clustered_scratches_do_not_shrink_cells_below_their_spacing():
+    # 12 parallel tracks 1.6e-5 apart: no cell size separates them better than the window would
+    lines = [np.array([[0.2, 0.5 + k * 1.6e-5], [0.8, 0.5 + k * 1.6e-5]]) for k in range(12)]
+    t = build_tables(ScratchSet.from_polylines(lines, width=1e-6, depth=1.2e-7))
+    assert t.cell_size >= 1.0 / 256
+
+
+def test08_in_memory_values_round_trip_bit_for_bit(plate):
+    values = memory.to_tensors(plate)
+    assert set(values) == set(memory.KEYS)
+    assert all(v.shape[0] == 1 for v in values.values())  # the leading axis of length 1
+    assert memory.from_values(values) == plate
+    flat = {key: np.asarray(value)[0] for key, value in values.items()}
+    assert memory.from_values(flat) == plate
+
+
+def test09_in_memory_values_name_the_bad_field(plate):
+    values = {key: np.asarray(value)[0] for key, value in memory.to_tensors(plate).items()}
+    with pytest.raises(ScratchFormatError, match="field 'seed'.*missing"):
+        memory.from_values({k: v for k, v in values.items() if k != "scratch_seed"})
+    with pytest.raises(ScratchFormatError, match="field 'width'"):
+        memory.from_values(dict(values, scratch_width=-values["scratch_width"]))
+    with pytest.raises(ScratchFormatError, match="field 'offsets'.*dtype"):
+        memory.from_values(dict(values, scratch_offsets=values["scratch_offsets"].astype(np.float64)))
