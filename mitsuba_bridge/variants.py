@@ -52,12 +52,10 @@ def activate(requested: str = "auto") -> str:
     """Set the chosen variant and register the project's plugins for it; returns the variant."""
     import mitsuba as mi
 
+    from . import register_plugins
+
     variant = choose_variant(requested)
     if mi.variant() != variant:
         mi.set_variant(variant)
-    try:
-        from .bsdf import register
-    except ImportError:  # TODO(render): remove once the BSDF branch is merged
-        return variant
-    register()
+    register_plugins()
     return variant
