@@ -87,3 +87,24 @@ def test_emission_strength_is_radiance_as_in_cycles(cycles, tmp_path):
     ours = floor_radiance("MITSUBA_SCRATCH", build, tmp_path)
     assert ours == pytest.approx(floor_radiance("CYCLES", build, tmp_path), rel=0.03)
     assert ours == pytest.approx((3 + 1.5 + 0.75) / 3, rel=0.03)
+
+
+def sky(kind, elevation_deg, disc=True):
+    def build(scene):
+        world = set_world(scene)
+        node = world.node_tree.nodes.new("ShaderNodeTexSky")
+        node.sky_type, node.sun_disc = kind, disc
+        node.sun_elevation = math.radians(elevation_deg)
+        direction = (0, math.cos(math.radians(elevation_deg)), math.sin(math.radians(elevation_deg)))
+        node.sun_direction = direction
+        world.node_tree.links.new(node.outputs["Color"], world.node_tree.nodes["Background"].inputs["Color"])
+    return build
+
+
+@pytest.mark.parametrize("kind, elevation, tolerance", [("HOSEK_WILKIE", 30, 0.05),
+                                                        ("MULTIPLE_SCATTERING", 20, 0.08),
+                                                        ("SINGLE_SCATTERING", 45, 0.10)])
+def test_sky_lights_the_floor_like_cycles(cycles, tmp_path, kind, elevation, tolerance):
+    # Hosek-Wilkie is the same model as Mitsuba's sunsky; the scattering skies are scaled to match.
+    ours = floor_radiance("MITSUBA_SCRATCH", sky(kind, elevation), tmp_path)
+    assert ours == pytest.approx(floor_radiance("CYCLES", sky(kind, elevation), tmp_path), rel=tolerance)
