@@ -33,13 +33,12 @@ def test_field_of_view_matches_blenders_camera(staged, fit, size, lens):
     staged.render.resolution_x, staged.render.resolution_y = size
     description = gather(staged)
     width, height = size
+    # Blender's own angles: angle_x spans the sensor width, angle_y its height; the sensor spans the
+    # fitted dimension (AUTO: the larger one, with the sensor width).
     horizontal = fit == "HORIZONTAL" or (fit == "AUTO" and width >= height)
-    # Blender's own angles: angle_x for the sensor width, angle_y for its height.
-    if horizontal:
-        expected = camera.data.angle_x if fit != "VERTICAL" else None
-    else:
-        tan_fit = math.tan((camera.data.angle_y if fit == "VERTICAL" else camera.data.angle_x) / 2)
-        expected = 2 * math.atan(tan_fit * width / height)
+    fitted_angle = camera.data.angle_y if fit == "VERTICAL" else camera.data.angle_x
+    tan_half = math.tan(fitted_angle / 2) * (1 if horizontal else width / height)
+    expected = 2 * math.atan(tan_half)
     assert description.camera.fov_x_deg == pytest.approx(math.degrees(expected), rel=1e-6)
 
 
