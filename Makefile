@@ -56,12 +56,12 @@ test-slow: setup
 # engine into out/demo.exr (linear) and out/demo.png (display-referred).
 demo: setup
 	@mkdir -p out
-	$(PY) tools/demo.py --output out
+	$(PY) -m scratch_iridescence.addon.scenes.demo --output out
 
 # Downloads the wheels named in blender_manifest.toml into wheels/ (once), builds
 # one zip per platform into dist/ and validates them with Blender's own tool.
 extension: setup
-	$(PY) tools/build_extension.py
+	$(PY) .ci/build_extension.py
 
 bench: setup
 	@for b in tests/bench/bench_*.py; do echo "== $$b"; $(PY) $$b; done

@@ -52,7 +52,7 @@ print("MITSUBA", mitsuba.__file__)
 
 def linux_zip(output: Path) -> Path:
     """Build the zips from the current tree (wheels are downloaded once into wheels/, then reused)."""
-    subprocess.run([sys.executable, str(ROOT / "tools" / "build_extension.py"), "--output-dir", str(output)],
+    subprocess.run([sys.executable, str(ROOT / ".ci" / "build_extension.py"), "--output-dir", str(output)],
                    check=True, cwd=ROOT)
     manifest = tomllib.loads((ROOT / "blender_manifest.toml").read_text())
     return output / f"{manifest['id']}-{manifest['version']}-linux_x64.zip"

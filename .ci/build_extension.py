@@ -10,7 +10,7 @@ Blender 5.1; Linux x64, Windows x64, macOS arm64).  This script
    (``blender_ext.py build --split-platforms``), into ``dist/``;
 3. validates every zip with the same tool.
 
-Run with ``make extension`` (or ``.venv/bin/python tools/build_extension.py``).
+Run with ``make extension`` (or ``.venv/bin/python .ci/build_extension.py``).
 """
 from __future__ import annotations
 

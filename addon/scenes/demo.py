@@ -7,8 +7,8 @@ the sun's mirror direction, where the scratches light up in diffraction colours.
 Saves ``demo.blend``, renders it with MITSUBA_SCRATCH (``bpy.ops.render.render``)
 and writes ``demo.exr`` (linear) and ``demo.png`` (display-referred: Standard view, exposure −6.5).
 
-    .venv/bin/python tools/demo.py --output out             # what `make demo` runs
-    .venv/bin/python tools/demo.py --output /tmp/d --resolution 64 40 --samples 4   # a quick look
+    .venv/bin/python -m scratch_iridescence.addon.scenes.demo --output out     # what `make demo` runs
+    .venv/bin/python -m scratch_iridescence.addon.scenes.demo --output /tmp/d --resolution 64 40 --samples 4
 """
 from __future__ import annotations
 
@@ -28,8 +28,8 @@ def build_scene(scene, *, scratch_count: int = 3000, seed: int = 7, resolution=(
     import bpy
     from mathutils import Vector
 
-    from scratch_iridescence.addon import storage
-    from scratch_iridescence.mitsuba_bridge import scratch
+    from ...mitsuba_bridge import scratch
+    from .. import storage
 
     # ---- the plate: a 10 cm square with UVs over [0, 1]², scratched ----
     bpy.ops.mesh.primitive_plane_add(size=PLATE_SIZE_M, location=(0, 0, 0.002))
@@ -106,11 +106,11 @@ def main(argv=None) -> int:
     started = time.perf_counter()
     import bpy
 
-    import scratch_iridescence
+    from ... import register, unregister  # the extension package
 
     output = Path(args.output).resolve()
     output.mkdir(parents=True, exist_ok=True)
-    scratch_iridescence.register()
+    register()
     try:
         bpy.ops.wm.read_factory_settings(use_empty=True)
         scene = bpy.context.scene
@@ -126,7 +126,7 @@ def main(argv=None) -> int:
         settings.file_format, settings.color_depth = "PNG", "8"
         bpy.data.images["Render Result"].save_render(filepath=str(output / "demo.png"), scene=scene)
     finally:
-        scratch_iridescence.unregister()
+        unregister()
     print(f"demo: wrote {output / 'demo.exr'} and {output / 'demo.png'} in {time.perf_counter() - started:.1f} s")
     return 0
 
