@@ -44,7 +44,7 @@ FIGURE = Figure(
            "and of the window form rings around both reflections; the wiping arcs around the plates stand out "
            "as denser, aligned sparkle.",
     renders=(Render("table", "300 000 scratches, generated and painted, under a pendant lamp and a window", {},
-                    resolution=(800, 500), samples=256, paper_minutes=93),),
+                    resolution=(960, 600), samples=384, paper_minutes=93),),
 )
 
 
@@ -103,7 +103,7 @@ def _lamp_position():
     return tuple(reflection + mirrored * (LAMP_HEIGHT_M / mirrored[2]))
 
 
-def build_scene(scene, *, resolution=(800, 500), samples: int = 256, scale: float = 1.0, seed: int = 1):
+def build_scene(scene, *, resolution=(960, 600), samples: int = 384, scale: float = 1.0, seed: int = 1):
     """The table, plates, lamp and room; returns the table top. ``scale`` < 1 scratches less (tests)."""
     import bpy
 

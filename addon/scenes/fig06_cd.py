@@ -44,17 +44,20 @@ FIGURE = Figure(
     scratches="21 875 concentric tracks × 143 chords = 3 128 125 segments (paper: 3 128 400), "
               "D = 120 nm, W = 1 µm, rectangular, pitch 1.6 µm, radii 23–58 mm; coherence diameter 30 µm "
               "(≈ 19 tracks per coherence area)",
-    design="A strip light (12 × 1 cm) behind the disc and a camera in front, both in the plane through the "
-           "disc's centre: the grating equation (ω_i + ω_o)·n = mλ/P is met along the diameter facing the "
-           "light, where the light's reflection (order 0) sits near the hub and h·n sweeps 0.2–0.5 over the far "
-           "half, so the first order spreads from violet to red along the radius. The strip is long across that "
-           "diameter, which widens the band in azimuth without mixing wavelengths along it. Incoherently the "
-           "tracks add intensities: no orders, only one track's broad sinc² envelope, a colourless haze.",
+    design="The disc lies on a dark cloth, seen from 21 cm at 45° with a 35 mm lens; a small strip light "
+           "(3 × 0.6 cm) hangs 15 cm from the disc on the far side, both close enough that directions change a "
+           "lot across the disc. The light's reflection (order 0) falls on the hub; everywhere the half vector's "
+           "tangential part h points nearly radially, so the grating equation h·n = mλ/P (P = 1.6 µm) selects a "
+           "wavelength by distance from the centre: over the far half h·n runs from 0.2 to 0.5 and the first "
+           "order draws rainbow rings from violet (inside) to red (outside), the second order starting at the "
+           "rim and on the near side. The strip is narrow in the radial direction, so the colours stay pure. "
+           "Incoherently the tracks add intensities: no orders, only one track's broad envelope, a pale haze "
+           "over the same region.",
     renders=(
         Render("coherent", "coherent (the model): the tracks interfere, rainbow grating orders",
-               {"coherent": True}, resolution=(640, 480), samples=64, paper_minutes=1029),
+               {"coherent": True}, resolution=(720, 540), samples=128, paper_minutes=1029),
         Render("incoherent", "incoherent: the same disc adding intensities, the orders vanish",
-               {"coherent": False}, resolution=(640, 480), samples=64, paper_minutes=1029),
+               {"coherent": False}, resolution=(720, 540), samples=128, paper_minutes=1029),
     ),
 )
 
@@ -63,8 +66,8 @@ def cd_tracks(radii_m=TRACKS_M, pitch_m: float = PITCH_M, chords: int = CHORDS_P
     """The CD's tracks as a ScratchSet in the disc's UV map (closed polygons around (0.5, 0.5))."""
     from ...mitsuba_bridge.scratch import ScratchSet
 
-    radii = np.arange(radii_m[0], radii_m[1], pitch_m) / (2 * DISC_RADIUS_M)  # UV units
-    count = len(radii)
+    count = int(round((radii_m[1] - radii_m[0]) / pitch_m))
+    radii = (radii_m[0] + pitch_m * np.arange(count)) / (2 * DISC_RADIUS_M)  # UV units
     angle = np.linspace(0.0, 2.0 * np.pi, chords + 1)
     angle[-1] = 0.0  # close each track exactly
     uv = np.empty((count, chords + 1, 2))
@@ -77,7 +80,7 @@ def cd_tracks(radii_m=TRACKS_M, pitch_m: float = PITCH_M, chords: int = CHORDS_P
         seed=np.arange(count, dtype=np.uint32))
 
 
-def build_scene(scene, *, coherent: bool = True, resolution=(640, 480), samples: int = 64,
+def build_scene(scene, *, coherent: bool = True, resolution=(720, 540), samples: int = 64,
                 track_radii_m=TRACKS_M, workdir: str | Path | None = None):
     """The CD on a dark cloth under a strip light; returns the disc.
 

@@ -19,10 +19,6 @@ SCRATCHES = dict(count=3000, seed=7, length_min=0.02, length_max=0.06, bend=math
                  depth_distribution="GAUSSIAN", depth_mean=250.0, depth_std=80.0,
                  width_distribution="GAUSSIAN", width_mean=4000.0, width_std=1300.0,
                  depth_variation_amplitude=1.1, depth_variation_frequency=0.04)
-LAMP_ELEVATION_DEG = 40.0
-#: The camera looks from a little above the lamp's mirror direction: its reflection lies just beyond the
-#: plate's far edge and the arcs around it cross the plate, coloured a few degrees off the highlight.
-CAMERA_ABOVE_MIRROR_DEG = 15.0
 EXPOSURE = -3.5
 
 FIGURE = Figure(
@@ -32,27 +28,19 @@ FIGURE = Figure(
           "lighting up where it lies perpendicular to the half vector, coloured by diffraction.",
     scratches="3 000 scratches (Generate operator: random directions, arcs bent up to ±30°, 2–6 cm), "
               "G_D[250, 80] nm, G_W[4, 1.3] µm, D[1.1, 0.04], rectangular; aluminium, coherence diameter 30 µm",
-    design="A 10 cm aluminium plate on a dark table in a dark studio, one small lamp (a 3 mm sphere, 35 cm "
-           "away) and the camera opposite it at the same 40° elevation, so the lamp's reflection sits in the "
-           "middle of the plate and the scratch glints form rings around it.",
+    design="A 10 cm aluminium plate on a dark table in a dark studio, one small lamp (a 3 mm sphere 35 cm away, "
+           "40° high) and the camera on the other side 15° above the lamp's mirror direction (24 cm, 50 mm lens): "
+           "the lamp's reflection lies at the plate's far edge, and the glints of the scratches perpendicular to "
+           "the half vector form arcs around it across the whole plate, coloured by diffraction a few degrees "
+           "off the highlight.",
     renders=(Render("lamp", "3 000 random scratches around a lamp's reflection", {},
-                    resolution=(640, 480), samples=256, paper_minutes=15, paper_megapixels=1.0),),
+                    resolution=(720, 540), samples=512, paper_minutes=15, paper_megapixels=1.0),),
 )
 
 
-def build_scene(scene, *, resolution=(640, 480), samples: int = 256, count: int | None = None):
+def build_scene(scene, *, resolution=(720, 540), samples: int = 512, count: int | None = None):
     """The plate, its table, the lamp and the camera; returns the plate. ``count`` overrides 3 000 (tests)."""
-    import bpy
-
     from . import staging
 
-    plate = staging.metal_plate("Scratched plate", PLATE_M, metal="Al")
-    staging.operator(bpy.ops.scratch.generate, plate, **{**SCRATCHES, "count": count or SCRATCHES["count"]})
-    staging.table()
-    staging.point_light(scene, "Lamp", staging.towards(LAMP_ELEVATION_DEG, 0.0, 0.35), power_w=20.0,
-                        radius=0.0015)
-    staging.constant_world(scene, (0.01, 0.01, 0.012))
-    staging.camera(scene, staging.towards(LAMP_ELEVATION_DEG + CAMERA_ABOVE_MIRROR_DEG, 180.0, 0.24),
-                   (0.0, 0.004, 0.0), lens_mm=50.0)
-    staging.render_settings(scene, resolution=resolution, samples=samples, max_depth=3, exposure=EXPOSURE)
-    return plate
+    return staging.studio_plate(scene, {**SCRATCHES, "count": count or SCRATCHES["count"]}, resolution=resolution,
+                                samples=samples, exposure=EXPOSURE, size_m=PLATE_M)

@@ -68,7 +68,7 @@ def groove_stroke(grooves: int = GROOVES, pitch_m: float = PITCH_M, band_y_m=BAN
     return staging.stroke(points.reshape(-1, 3), starts.ravel())
 
 
-def build_scene(scene, *, coherent: bool = True, resolution=(640, 400), samples: int = 256,
+def build_scene(scene, *, coherent: bool = True, resolution=(720, 450), samples: int = 256,
                 grooves: int = GROOVES):
     """The ruled plate under the strip light; returns the plate. ``grooves`` < 1 600 for quick tests."""
     import bpy

@@ -22,8 +22,6 @@ SCRATCHES = dict(count=3000, seed=17, length_min=0.02, length_max=0.06, bend=mat
                  depth_distribution="GAUSSIAN", depth_mean=1000.0, depth_std=0.0,
                  width_distribution="GAUSSIAN", width_mean=2000.0, width_std=0.0,
                  depth_variation_amplitude=1.1, depth_variation_frequency=0.03)
-LAMP_ELEVATION_DEG = 40.0
-CAMERA_ABOVE_MIRROR_DEG = 15.0
 EXPOSURE = -4.0
 
 FIGURE = Figure(
@@ -38,28 +36,19 @@ FIGURE = Figure(
            "perpendicular to the half vector form arcs across the plate.",
     renders=(
         Render("rectangular", "rectangular grooves: pastel interference colours on arcs around the reflection",
-               {"profile": "RECTANGULAR"}, resolution=(640, 480), samples=256, paper_minutes=30),
+               {"profile": "RECTANGULAR"}, resolution=(720, 540), samples=512, paper_minutes=30),
         Render("triangular", "V-grooves: facet reflections spread the glints, whiter",
-               {"profile": "TRIANGULAR"}, resolution=(640, 480), samples=256, paper_minutes=31),
+               {"profile": "TRIANGULAR"}, resolution=(720, 540), samples=512, paper_minutes=31),
     ),
 )
 
 
-def build_scene(scene, *, profile: str = "RECTANGULAR", resolution=(640, 480), samples: int = 256,
+def build_scene(scene, *, profile: str = "RECTANGULAR", resolution=(720, 540), samples: int = 512,
                 count: int | None = None):
-    """The plate with the given scratch profile; returns the plate. ``count`` overrides 3 000 (tests)."""
-    import bpy
-
+    """The plate with the given scratch profile in the lamp studio; returns the plate. ``count`` overrides
+    3 000 (tests)."""
     from . import staging
 
-    plate = staging.metal_plate("Scratched plate", PLATE_M, metal="Al")
-    staging.operator(bpy.ops.scratch.generate, plate,
-                     **{**SCRATCHES, "count": count or SCRATCHES["count"], "profile": profile})
-    staging.table()
-    staging.point_light(scene, "Lamp", staging.towards(LAMP_ELEVATION_DEG, 0.0, 0.35), power_w=20.0,
-                        radius=0.0015)
-    staging.constant_world(scene, (0.01, 0.01, 0.012))
-    staging.camera(scene, staging.towards(LAMP_ELEVATION_DEG + CAMERA_ABOVE_MIRROR_DEG, 180.0, 0.24),
-                   (0.0, 0.004, 0.0), lens_mm=50.0)
-    staging.render_settings(scene, resolution=resolution, samples=samples, max_depth=3, exposure=EXPOSURE)
-    return plate
+    generate = {**SCRATCHES, "count": count or SCRATCHES["count"], "profile": profile}
+    return staging.studio_plate(scene, generate, resolution=resolution, samples=samples, exposure=EXPOSURE,
+                                size_m=PLATE_M)

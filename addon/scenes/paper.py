@@ -121,7 +121,8 @@ def render_worker(blend: Path, output: Path) -> dict:
     bpy.ops.render.render(write_still=True)
     wall, cpu = time.perf_counter() - wall, _cpu_seconds() - cpu
     peak = _peak_mb()
-    settings.file_format, settings.color_depth = "PNG", "8"
+    # RGB (no alpha channel) at the strongest compression: the gallery commits these files.
+    settings.file_format, settings.color_depth, settings.color_mode, settings.compression = "PNG", "8", "RGB", 100
     bpy.data.images["Render Result"].save_render(filepath=str(stem) + ".png", scene=scene)
     width, height = scene.render.resolution_x, scene.render.resolution_y
     return {"open_s": opened, "render_s": wall, "render_cpu_s": cpu, "peak_mb": peak,
@@ -135,17 +136,22 @@ def _run_worker(args: list[str], label: str) -> dict:
     command = [sys.executable, "-m", f"{_PACKAGE}.paper", *args]
     process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                                env={**os.environ, "PYTHONUNBUFFERED": "1"})
-    result, last_shown, tail = None, 0.0, []
+    result, last_shown, tail, passes_s = None, 0.0, [], None
     for line in process.stdout:
         tail = (tail + [line])[-40:]
         if line.startswith("RESULT "):
             result = json.loads(line[len("RESULT "):])
-        elif line.startswith("Fra:") and time.perf_counter() - last_shown > 20:
-            print(f"    {label}: {line.split('|', 2)[-1].strip()}", flush=True)
-            last_shown = time.perf_counter()
+        elif line.startswith("Fra:"):
+            # The engine's progress: "Fra:1 | Mitsuba Scratch | Sample 64/64 | 62.5 s" (time since the first pass).
+            passes_s = float(line.rsplit("|", 1)[-1].strip().rstrip("s"))
+            if time.perf_counter() - last_shown > 20:
+                print(f"    {label}: {line.split('|', 2)[-1].strip()}", flush=True)
+                last_shown = time.perf_counter()
     if process.wait() != 0 or result is None:
         sys.stdout.write("".join(tail))
         raise RuntimeError(f"{label}: worker failed ({' '.join(command)})")
+    if passes_s is not None:
+        result["passes_s"] = passes_s
     return result
 
 
@@ -215,7 +221,10 @@ def main(argv=None) -> int:
     if not args.no_docs:
         from . import pages
 
-        pages.write(args.docs.resolve(), records, validation, figures(args.only), time.perf_counter() - started)
+        if validation is None and (output / "validation" / "validation.json").exists():
+            validation = json.loads((output / "validation" / "validation.json").read_text())
+        pages.write(args.docs.resolve(), pages.load_records(output), validation, figures(),
+                    time.perf_counter() - started, output)
     print(f"paper: {len(records)} pictures in {time.perf_counter() - started:.0f} s; renders in {output}")
     return 0
 

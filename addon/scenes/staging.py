@@ -14,7 +14,7 @@ from contextlib import contextmanager
 import numpy as np
 
 __all__ = ["active", "operator", "stroke", "material", "plane", "disc", "metal_plate", "table", "towards", "camera", "area_light",
-           "point_light", "sky_world", "constant_world", "environment_world", "render_settings", "look_at_rotation"]
+           "point_light", "lamp_studio", "studio_plate", "sky_world", "constant_world", "environment_world", "render_settings", "look_at_rotation"]
 
 
 @contextmanager
@@ -256,6 +256,37 @@ def environment_world(scene, name: str, pixels: np.ndarray, *, strength: float =
     background.inputs["Strength"].default_value = strength
     tree.links.new(node.outputs["Color"], background.inputs["Color"])
     return world
+
+
+def lamp_studio(scene, *, lamp_elevation_deg: float = 40.0, camera_above_mirror_deg: float = 15.0,
+                camera_distance_m: float = 0.24, lens_mm: float = 50.0, target=(0.0, 0.004, 0.0)):
+    """A dark studio around a plate at the origin: one small lamp and a camera on the other side.
+
+    The lamp (a 3 mm sphere of 20 W, 35 cm away) stands ``lamp_elevation_deg``
+    above the table towards +Y; the camera looks from the opposite side,
+    ``camera_above_mirror_deg`` above the lamp's mirror direction, so the
+    lamp's reflection lies near the plate's far edge and the scratch glints
+    around it cross the plate.  Returns the camera.
+    """
+    point_light(scene, "Lamp", towards(lamp_elevation_deg, 0.0, 0.35), power_w=20.0, radius=0.0015)
+    constant_world(scene, (0.01, 0.01, 0.012))
+    return camera(scene, towards(lamp_elevation_deg + camera_above_mirror_deg, 180.0, camera_distance_m), target,
+                  lens_mm=lens_mm)
+
+
+def studio_plate(scene, generate: dict, *, resolution, samples: int, exposure: float, size_m: float = 0.10,
+                 diffuse_reflectance=None):
+    """A metal plate scratched by the Generate operator (``generate``: its settings) in the lamp studio."""
+    import bpy
+
+    plate = metal_plate("Scratched plate", size_m, metal="Al")
+    if diffuse_reflectance is not None:
+        plate.scratch.diffuse_reflectance = diffuse_reflectance
+    operator(bpy.ops.scratch.generate, plate, **generate)
+    table()
+    lamp_studio(scene)
+    render_settings(scene, resolution=resolution, samples=samples, max_depth=3, exposure=exposure)
+    return plate
 
 
 def render_settings(scene, *, resolution, samples: int, max_depth: int = 4, exposure: float = 0.0, seed: int = 0):
