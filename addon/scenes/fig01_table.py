@@ -28,7 +28,7 @@ CAMERA = (-0.22, -0.62, 0.52)   # a diner's eye, leaning over the table
 CAMERA_TARGET = (0.02, 0.08, 0.0)
 LAMP_REFLECTION = (0.02, 0.02)  # where on the table the pendant lamp's reflection falls
 LAMP_HEIGHT_M = 0.65
-EXPOSURE = -1.0
+EXPOSURE = 0.0
 
 FIGURE = Figure(
     key="fig01_table", label="Fig. 1 (middle)", title="Dining table",
@@ -89,7 +89,7 @@ def window_environment(width: int = 1024, height: int = 512) -> np.ndarray:
     room = np.where(elevation > 0, 0.03 + 0.02 * np.sin(elevation), 0.015)[..., None] * np.array([1.0, 0.93, 0.85])
     window = (np.abs(facing) < math.radians(28)) & (elevation > math.radians(4)) & (elevation < math.radians(38))
     mullion = (np.abs(facing) < math.radians(0.8)) | (np.abs(elevation - math.radians(21)) < math.radians(0.8))
-    sky = np.array([0.8, 0.9, 1.1]) * 1.2
+    sky = np.array([0.8, 0.9, 1.1]) * 0.6
     return np.where((window & ~mullion)[..., None], sky, room).astype(np.float32)
 
 

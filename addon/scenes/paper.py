@@ -223,8 +223,7 @@ def main(argv=None) -> int:
 
         if validation is None and (output / "validation" / "validation.json").exists():
             validation = json.loads((output / "validation" / "validation.json").read_text())
-        pages.write(args.docs.resolve(), pages.load_records(output), validation, figures(),
-                    time.perf_counter() - started, output)
+        pages.write(args.docs.resolve(), pages.load_records(output), validation, figures(), output)
     print(f"paper: {len(records)} pictures in {time.perf_counter() - started:.0f} s; renders in {output}")
     return 0
 
