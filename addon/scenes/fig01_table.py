@@ -40,9 +40,11 @@ FIGURE = Figure(
               "cutlery drags; Pen: 6 long scratches); aluminium top, coherence diameter 30 µm",
     design="A 1.6 × 0.9 m aluminium table top in a dim room whose environment (made in code) has a window "
            "behind the table; a pendant lamp hangs where its reflection falls between the plates, seen from "
-           "a seated diner's eye height. The glints of scratches perpendicular to the half vector of the lamp "
-           "and of the window form rings around both reflections; the wiping arcs around the plates stand out "
-           "as denser, aligned sparkle.",
+           "a seated diner's eye height. The glints of scratches perpendicular to the lamp's half vector form "
+           "coloured rings around its reflection, and the wiping arcs around the plates stand out as denser, "
+           "aligned sparkle where they cross those rings (beside the right-hand plate and in front of the left "
+           "one). The window's reflection is a bright mirror image in which the much fainter glints are lost; "
+           "the window is dim, so that the exposure can show the sparkle around the lamp.",
     renders=(Render("table", "300 000 scratches, generated and painted, under a pendant lamp and a window", {},
                     resolution=(960, 600), samples=384, paper_minutes=93),),
 )

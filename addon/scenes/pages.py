@@ -106,7 +106,7 @@ def _figure_section(module, figure, records: dict) -> list[str]:
     for render, record in done:
         paper_res = "4 MP" if render.paper_megapixels == 4.0 else f"{render.paper_megapixels:g} MP"
         lines.append(f"| {render.name} | {record['width']} × {record['height']} × {record['spp']} | "
-                     f"{record['build_s']:.0f} s + {record['render_s']:.0f} s | "
+                     f"{record['build_s']:.1f} s + {record['render_s']:.0f} s | "
                      f"{render.paper_minutes:g} min at {paper_res} × {PAPER_SPP} spp |")
     return lines + [""]
 
@@ -114,7 +114,7 @@ def _figure_section(module, figure, records: dict) -> list[str]:
 def _validation_section(validation: dict) -> list[str]:
     single = validation["configs"]["single"]
     ten = validation["configs"]["ten"]
-    pct = lambda value: f"{100 * value:.2g} %"  # noqa: E731
+    pct = lambda value: f"{100 * value:.3g} %"  # noqa: E731
     lines = ["## Numerical validation (supplement Figs. 15 and 16)", "",
              "The supplement validates the model against the radiance computed numerically from explicit "
              "height maps of one scratch and of ten random scratches (Fig. 16), at 9, 36 and 144 MP: the "

@@ -197,6 +197,8 @@ def main(argv=None) -> int:
     parser.add_argument("--samples-scale", type=float, default=1.0, help="samples-per-pixel factor")
     parser.add_argument("--no-docs", action="store_true", help="render only; leave docs/ alone")
     parser.add_argument("--no-validation", action="store_true", help="skip the numerical validation figure")
+    parser.add_argument("--pages-only", action="store_true",
+                        help="render nothing: rewrite the pages from the statistics already in --output")
     args = parser.parse_args(argv)
 
     if args.command == "build":
@@ -211,9 +213,9 @@ def main(argv=None) -> int:
     started = time.perf_counter()
     output = args.output.resolve()
     output.mkdir(parents=True, exist_ok=True)
-    records = run_all(output, args.only, args.scale, args.samples_scale)
+    records = [] if args.pages_only else run_all(output, args.only, args.scale, args.samples_scale)
     validation = None
-    if not args.no_validation:
+    if not (args.no_validation or args.pages_only):
         from ...mitsuba_bridge import validation as numerics
 
         print("Numerical validation (supplement Fig. 15)", flush=True)
