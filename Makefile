@@ -13,10 +13,11 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 PYTEST := $(PY) -m pytest
 
-.PHONY: setup llvm test test-slow demo extension bench clean help
+.PHONY: setup llvm test test-slow demo paper extension bench clean help
 
 help:
 	@echo "make demo       render the bundled demo scene to out/"
+	@echo "make paper      reproduce the paper's scenes into out/paper/; write docs/gallery.md and docs/benchmarks.md"
 	@echo "make test       run the test suite (without the slow checks)"
 	@echo "make test-slow  run the slow checks only"
 	@echo "make bench      run the benchmarks in tests/bench"
@@ -57,6 +58,14 @@ test-slow: setup
 demo: setup
 	@mkdir -p out
 	$(PY) -m scratch_iridescence.addon.scenes.demo --output out
+
+# Builds every reproduced figure of the paper (addon/scenes/fig*.py) with the add-on's operators, renders
+# each in a fresh process through the engine into out/paper/ (EXR, PNG, .blend, statistics), runs the
+# numerical validation and writes docs/gallery.md, docs/benchmarks.md and docs/gallery/*.png.
+# About 16 minutes on the 2-core development machine (docs/gallery.md lists each picture's time).
+paper: setup
+	@mkdir -p out/paper
+	$(PY) -m scratch_iridescence.addon.scenes.paper --output out/paper --docs docs
 
 # Downloads the wheels named in blender_manifest.toml into wheels/ (once), builds
 # one zip per platform into dist/ and validates them with Blender's own tool.

@@ -5,6 +5,7 @@ Commands
 info FILE...      summary of scratch files (validates them)
 generate OUT      write a random scratch file for a flat UV square
 render FOLDER     render a folder exported from Blender ("Export Mitsuba scene") to EXR
+validate OUT      the plugin against a brute-force wave field over the direction-cosine plane (figure + numbers)
 """
 from __future__ import annotations
 
@@ -84,6 +85,19 @@ def _render(args) -> int:
     return 0
 
 
+def _validate(args) -> int:
+    from . import validation
+
+    results = validation.run(args.output)
+    for name, entry in results["configs"].items():
+        errors = entry["plugin_vs_height_field"]["550"]
+        print(f"{name}: plugin vs height field at 550 nm: {100 * errors['all']:.3g} % relative L2 "
+              f"({100 * errors['off_lobe']:.3g} % off the mirror lobe); crossing share "
+              f"{100 * entry['crossing_share']:.3g} %")
+    print(f"wrote {args.output}/validation.png and validation.json in {results['seconds']:.0f} s")
+    return 0
+
+
 def main(argv=None) -> int:
     """Entry point of ``python -m mitsuba_bridge``."""
     parser = argparse.ArgumentParser(prog="python -m mitsuba_bridge", description=__doc__.split("\n")[0])
@@ -118,6 +132,11 @@ def main(argv=None) -> int:
                         help="Mitsuba variant (default auto: cuda_ad_spectral when available, else llvm_ad_spectral)")
     render.add_argument("-q", "--quiet", action="store_true", help="no per-pass progress lines")
     render.set_defaults(run=_render)
+
+    validate = commands.add_parser("validate", help="compare the plugin with a brute-force wave field (needs "
+                                                    "scipy and matplotlib: the dev extras)")
+    validate.add_argument("output", help="folder for validation.png and validation.json")
+    validate.set_defaults(run=_validate)
 
     args = parser.parse_args(argv)
     return args.run(args)

@@ -6,7 +6,7 @@ import mitsuba as mi
 import numpy as np
 import pytest
 
-import reference as ref
+from mitsuba_bridge.bsdf import reference as ref
 import shading
 from mitsuba_bridge import bsdf as scratch_bsdf
 from mitsuba_bridge.scratch import Profile, ScratchSet

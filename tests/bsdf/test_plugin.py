@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import mitsuba_bridge
-import reference
+from mitsuba_bridge.bsdf import reference
 import shading
 from mitsuba_bridge import bsdf as scratch_bsdf
 from mitsuba_bridge import scratch

@@ -1,11 +1,14 @@
-"""Brute-force wave-field reference for the scratch BSDF (MODEL.md §8.1), numpy only.
+"""Brute-force wave-field reference for the scratch BSDF (MODEL.md §8.1), numpy only (scipy for sparse sums).
+
+Used by the BSDF tests (``tests/bsdf``) and by the numerical validation
+(:mod:`mitsuba_bridge.validation`, the supplement's Fig. 15).
 
 The windowed far field ``U(ξ) = Σ w(x) T(x) e^{-2πiξ·x} Δx²`` of an explicit,
 rasterised height field, with ``T = exp(i k_z d(x))`` and the exact Gaussian
 window (no factorisation, no complex error function, no complex frequency).
 Lengths in µm, x0 = 0.
 
-Two rasterisations of the same height field:
+Three rasterisations of the same height field:
 
 * :func:`field_scratch_frames` samples each scratch's footprint on a grid
   aligned with the scratch (pitch ~10 nm).  On that grid the window and the
@@ -16,6 +19,11 @@ Two rasterisations of the same height field:
 * :func:`field_global_raster` rasterises the height field on one global grid
   (pixel centres, depth = deepest scratch at the pixel) and sums every scratch
   pixel directly: the literal brute force, used to check the first.
+* :func:`raster_footprints` + :func:`windowed_dft`: the same global raster
+  (rectangular profiles) summed for a whole grid of frequencies at once,
+  separably through a sparse pixel mask; it tells the true height field
+  (the deepest scratch at a crossing) from the model's sum of transfer
+  functions.  This draws whole direction-cosine planes (the validation).
 """
 from __future__ import annotations
 
@@ -176,3 +184,68 @@ def field_separable_model(scratches, xi, k_z, sigma, complex_shift):
         total += (np.exp(-2j * np.pi * nu_perp * a_perp) * _phi_difference(c, c + length, nu_par, sigma)
                   * np.exp(-0.5 * (a_perp / sigma) ** 2) * _cross_section_model(s, nu_perp - 1j * shift, k_z * s.depth))
     return total
+
+
+# ------------------------------------------------------------------------------
+# Whole direction-cosine planes at once: one raster, separable windowed DFTs
+def raster_footprints(scratches, pitch, half_size):
+    """Rasterise rectangular scratches on one pixel-centre grid over ±``half_size`` µm.
+
+    Returns ``(x, footprints, deepest)``: the grid's coordinates (N,), and per
+    scratch the flat pixel indices (row · N + column, row = y) it covers and
+    those where it is the deepest scratch (its depth is the height field's
+    there; at a crossing the deeper scratch owns the pixel).  The transfer
+    function of the true height field is then ``1 + Σ_k (e^{i k_z D_k} − 1)
+    χ[deepest_k]``; the model's sum of transfer functions uses ``footprints``.
+    """
+    if any(s.profile != RECT for s in scratches):
+        raise ValueError("raster_footprints handles rectangular profiles (one depth per scratch)")
+    x, _ = _samples(-half_size, half_size, pitch)
+    n = len(x)
+    depth = np.zeros((n, n), dtype=np.float32)
+    owner = np.full((n, n), -1, dtype=np.int16)
+    footprints = []
+    for k, s in enumerate(scratches):
+        a, length, d, nrm = s.frame()
+        corners = np.array([a + sa * length * d + sn * 0.5 * s.width * nrm for sa in (0, 1) for sn in (-1, 1)])
+        lo = np.clip(np.searchsorted(x, corners.min(axis=0) - pitch), 0, n)
+        hi = np.clip(np.searchsorted(x, corners.max(axis=0) + pitch), 0, n)
+        gx, gy = np.meshgrid(x[lo[0]:hi[0]] - a[0], x[lo[1]:hi[1]] - a[1], indexing="xy")
+        t = gx * d[0] + gy * d[1]
+        u = gx * nrm[0] + gy * nrm[1]
+        inside = (t >= 0) & (t <= length) & (np.abs(u) <= 0.5 * s.width)
+        rows, cols = np.nonzero(inside)
+        rows, cols = rows + lo[1], cols + lo[0]
+        footprints.append(rows * n + cols)
+        deeper = s.depth > depth[rows, cols]
+        depth[rows[deeper], cols[deeper]] = s.depth
+        owner[rows[deeper], cols[deeper]] = k
+    flat_owner = owner.ravel()
+    deepest = [p[flat_owner[p] == k] for k, p in enumerate(footprints)]
+    return x, footprints, deepest
+
+
+def windowed_dft(pixels, x, sigma, xi_x, xi_y):
+    """Σ_pixels w(x) e^{-2πi ξ·x} Δx² over the grid ξ = (xi_x[j], xi_y[i]) → (len(xi_y), len(xi_x)).
+
+    ``pixels`` are flat indices (row · N + column) of the grid ``x`` (pixel
+    centres, pitch Δx); the Gaussian window and the phase separate, so the sum
+    is two matrix products with the sparse pixel mask in between.
+    """
+    from scipy import sparse
+
+    n = len(x)
+    pitch = x[1] - x[0]
+    weight = np.exp(-0.5 * (x / sigma) ** 2) * pitch
+    along_x = weight[:, None] * np.exp(-2j * np.pi * np.outer(x, xi_x))  # (N, Mx)
+    along_y = weight[None, :] * np.exp(-2j * np.pi * np.outer(xi_y, x))  # (My, N)
+    rows, cols = np.divmod(np.asarray(pixels, dtype=np.int64), n)
+    used, row_index = np.unique(rows, return_inverse=True)
+    mask = sparse.csr_matrix((np.ones(len(cols)), (row_index, cols)), shape=(len(used), n))
+    return along_y[:, used] @ (mask @ along_x)
+
+
+def mirror_field(xi_x, xi_y, sigma):
+    """U0 = 2πσ² exp(-2π²σ²|ξ|²), the unscratched window's field, on the grid (len(xi_y), len(xi_x))."""
+    r2 = xi_x[None, :] ** 2 + xi_y[:, None] ** 2
+    return 2 * np.pi * sigma ** 2 * np.exp(-2 * np.pi ** 2 * sigma ** 2 * r2)
