@@ -88,12 +88,10 @@ def add_light(scene, kind, location=(0, 0, 2), rotation=(0, 0, 0), **data):
 
 
 def set_world(scene, colour=(0, 0, 0), strength=1.0):
-    world = bpy.data.worlds.new("World")
-    scene.world = world
-    background = world.node_tree.nodes["Background"]
-    background.inputs["Color"].default_value = (*colour, 1)
-    background.inputs["Strength"].default_value = strength
-    return world
+    """A uniform world (the paper scenes' staging helper)."""
+    from scratch_iridescence.addon.scenes import staging
+
+    return staging.constant_world(scene, colour, strength=strength)
 
 
 def render_to(scene, path):
