@@ -13,8 +13,9 @@ from contextlib import contextmanager
 
 import numpy as np
 
-__all__ = ["active", "operator", "stroke", "material", "plane", "disc", "metal_plate", "table", "towards", "camera", "area_light",
-           "point_light", "lamp_studio", "studio_plate", "sky_world", "constant_world", "environment_world", "render_settings", "look_at_rotation"]
+__all__ = ["active", "operator", "stroke", "material", "plane", "disc", "metal_plate", "table", "towards", "camera",
+           "area_light", "point_light", "lamp_studio", "studio_plate", "sky_world", "constant_world",
+           "environment_world", "render_settings", "look_at_rotation"]
 
 
 @contextmanager
