@@ -24,6 +24,8 @@ from __future__ import annotations
 import io
 import math
 import struct
+import tokenize
+import warnings
 import zipfile
 import zlib
 from dataclasses import dataclass
@@ -55,9 +57,10 @@ _CHUNK_BYTES = 1 << 22
 _ZIP_ERRORS = (zipfile.BadZipFile, zipfile.LargeZipFile, zlib.error, EOFError, OSError, ValueError,
                struct.error, UnicodeDecodeError, NotImplementedError, RuntimeError, OverflowError,
                KeyError, IndexError)
-# What numpy's header parser raises on a damaged header (its literal_eval and descr_to_dtype).
+# What numpy's header parser raises on a damaged header: its tokenize filter for
+# Python-2 headers, literal_eval and descr_to_dtype (TokenError found by tests/scratch/test_fuzz_files.py).
 _NPY_HEADER_ERRORS = (ValueError, SyntaxError, TypeError, KeyError, IndexError, OverflowError,
-                      RecursionError, UnicodeDecodeError, MemoryError)
+                      RecursionError, UnicodeDecodeError, MemoryError, tokenize.TokenError, Warning)
 
 
 @dataclass(frozen=True)
@@ -290,8 +293,11 @@ def _read_npy_header(member: _Guarded, key: str) -> MemberHeader:
         raise ScratchFormatError("truncated .npy header", key)
     reader = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
     try:
-        shape, fortran_order, dtype = reader(io.BytesIO(raw_length + text),
-                                             max_header_size=_MAX_NPY_HEADER_BYTES)
+        # A header numpy only accepts with a deprecation warning ("(type, 1)") was not written by numpy.
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            shape, fortran_order, dtype = reader(io.BytesIO(raw_length + text),
+                                                 max_header_size=_MAX_NPY_HEADER_BYTES)
     except _NPY_HEADER_ERRORS as error:
         raise ScratchFormatError(f"damaged .npy header: {error}", key) from None
     if any(dimension < 0 for dimension in shape):
