@@ -142,8 +142,8 @@ class ArchiveReader:
     # --------------------------------------------------------------- data
     def array(self, key: str, header: MemberHeader) -> np.ndarray:
         """Inflate member ``key`` (whose checked header is ``header``) into an array of exactly that size."""
-        buffer = bytearray(header.data_bytes)
-        view = memoryview(buffer)
+        # np.empty, not bytearray: no zero-filling of memory that is overwritten at once.
+        buffer = np.empty(header.data_bytes, dtype=np.uint8)
         filled = 0
         with self._open(key) as member:
             try:
@@ -152,7 +152,7 @@ class ArchiveReader:
                     chunk = member.read(min(_CHUNK_BYTES, len(buffer) - filled))
                     if not chunk:
                         break
-                    view[filled:filled + len(chunk)] = chunk
+                    buffer[filled:filled + len(chunk)] = np.frombuffer(chunk, dtype=np.uint8)
                     filled += len(chunk)
                 extra = member.read(1)  # also runs the CRC check at the end of the member
             except _ZIP_ERRORS as error:
@@ -161,7 +161,7 @@ class ArchiveReader:
             raise ScratchFormatError(
                 f"member data does not match its declared size of {len(buffer):,} bytes", key)
         order = "F" if header.fortran_order else "C"
-        return np.frombuffer(buffer, dtype=header.dtype).reshape(header.shape, order=order)
+        return buffer.view(header.dtype).reshape(header.shape, order=order)
 
     def _open(self, key: str):
         try:

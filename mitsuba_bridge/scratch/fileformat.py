@@ -17,7 +17,7 @@ import numpy as np
 from .archive import ArchiveReader
 from .atomic import write_atomically
 from .scratchset import (FIELD_SPECS, MAX_SCRATCHES, MAX_VERTICES, ScratchFormatError, ScratchSet,
-                         validate_arrays, validate_offsets)
+                         validate_offsets)
 
 __all__ = ["FORMAT", "FORMAT_VERSION", "load", "save", "save_bytes", "loads", "dumps"]
 
@@ -111,8 +111,7 @@ def _read(stream) -> ScratchSet:
         for key in FIELD_SPECS:
             if key not in arrays:
                 arrays[key] = _native(archive.array(key, headers[key]))
-    validate_arrays(arrays)
-    return ScratchSet(**arrays)
+    return ScratchSet(**arrays)  # validates every field
 
 
 def _format_header(archive: ArchiveReader):
