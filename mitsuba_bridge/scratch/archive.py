@@ -94,7 +94,6 @@ class ArchiveReader:
     """
 
     def __init__(self, stream):
-        self._stream = stream
         size = stream.seek(0, io.SEEK_END)
         _check_end_record(stream, size)
         try:
@@ -125,8 +124,8 @@ class ArchiveReader:
         info = self.members[key]
         if info.file_size > max_data_bytes + _MAX_NPY_HEADER_BYTES:
             raise ScratchFormatError(
-                f"member inflates to {info.file_size:,} bytes; at most {max_data_bytes:,} bytes of data "
-                "are possible within the format's limits", key)
+                f"member declares {info.file_size:,} bytes inflated; at most {max_data_bytes:,} bytes of "
+                "data are possible within the format's limits", key)
         with self._open(key) as member:
             header = _read_npy_header(member, key)
         if header.data_bytes > max_data_bytes:

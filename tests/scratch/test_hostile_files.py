@@ -6,6 +6,7 @@ numpy, a format string compared loosely, offsets whose differences wrap around
 in int64, and a small file inflating to gigabytes before being rejected.
 """
 import io
+import struct
 import tracemalloc
 import zipfile
 import zlib
@@ -17,7 +18,7 @@ from hostile import (member_bytes, npy_bytes, set_compression_method, set_flag_b
 
 from mitsuba_bridge import scratch
 from mitsuba_bridge.scratch import ScratchFormatError, ScratchSet
-from mitsuba_bridge.scratch.scratchset import MAX_SCRATCHES, MAX_VERTICES
+from mitsuba_bridge.scratch.scratchset import MAX_SCRATCHES, MAX_VERTICES, validate_offsets
 
 
 def refused(data: bytes, tmp_path, field=None, match=None) -> ScratchFormatError:
@@ -154,7 +155,7 @@ def test_format_string_must_match_exactly(tmp_path, two_scratches, text):
 
 def test_overlong_format_string_is_refused_from_its_header(tmp_path, two_scratches):
     members = member_bytes(two_scratches, format=np.array("scratch-iridescence/1" + " " * 5000))
-    refused(zip_bytes(members), tmp_path, "format", "inflates to|at most")
+    refused(zip_bytes(members), tmp_path, "format", "at most")
 
 
 def test_newer_format_says_so(tmp_path, two_scratches):
@@ -221,8 +222,6 @@ def _bomb(inflated_bytes: int, rows: int, declared_bytes: int | None = None) -> 
 
 def _append_raw_member(archive_bytes: bytes, name: str, deflated: bytes, crc: int, size: int) -> bytes:
     """``archive_bytes`` with one more deflate member whose compressed bytes are given."""
-    import struct
-
     with zipfile.ZipFile(io.BytesIO(archive_bytes)) as archive:
         infos = archive.infolist()
         directory_start = archive.start_dir
@@ -246,8 +245,6 @@ def _append_raw_member(archive_bytes: bytes, name: str, deflated: bytes, crc: in
 
 
 def _central_record(name: bytes, method: int, crc: int, compressed: int, size: int, offset: int) -> bytes:
-    import struct
-
     zip64 = size >= 0xFFFFFFFF or compressed >= 0xFFFFFFFF
     extra = struct.pack("<HHQQ", 1, 16, size, compressed) if zip64 else b""
     return struct.pack("<4s6H3L5H2L", b"PK\x01\x02", 45, 45, 0, method, 0, 0x21, crc,
@@ -267,7 +264,7 @@ def test_decompression_bomb_is_refused_from_its_headers(tmp_path, bomb):
     assert len(bomb) < 2_000_000
     tracemalloc.start()
     try:
-        error = refused(bomb, tmp_path, "uv", "inflates to 1,600,000,128 bytes")
+        error = refused(bomb, tmp_path, "uv", "declares 1,600,000,128 bytes inflated")
         _, peak = tracemalloc.get_traced_memory()
     finally:
         tracemalloc.stop()
@@ -291,10 +288,10 @@ def test_member_inflating_beyond_its_declared_size_is_cut_at_that_size(tmp_path)
 def test_limits_are_enforced_on_sets_too():
     offsets = np.zeros(MAX_SCRATCHES + 2, dtype=np.int64)
     with pytest.raises(ScratchFormatError, match="at most") as caught:
-        scratch.scratchset.validate_offsets(offsets, 0)
+        validate_offsets(offsets, 0)
     assert caught.value.field == "offsets"
     with pytest.raises(ScratchFormatError, match="at most") as caught:
-        scratch.scratchset.validate_offsets(np.array([0, MAX_VERTICES + 1]), MAX_VERTICES + 1)
+        validate_offsets(np.array([0, MAX_VERTICES + 1]), MAX_VERTICES + 1)
     assert caught.value.field == "uv"
 
 
