@@ -112,7 +112,7 @@ class SCRATCH_OT_export_file(ObjectModeOperator, bpy.types.Operator, ExportHelpe
         try:
             check_object(obj)
             # The bytes written are the ones just validated (a damaged set is refused, never exported).
-            stored, data = storage.read_scratch_file(obj)
+            stored, data, _ = storage.read_scratch_file(obj)
             if data is None:
                 data = scratch.dumps(ScratchSet.empty())
             path = Path(bpy.path.abspath(self.filepath))

@@ -24,11 +24,12 @@ from __future__ import annotations
 import hashlib
 import secrets
 from collections import OrderedDict
+from typing import NamedTuple
 
 from ..mitsuba_bridge import scratch
 from ..mitsuba_bridge.scratch import ScratchFormatError, ScratchSet
 
-__all__ = ["DATA_KEY", "StoredScratchesError", "read_scratches", "read_scratch_file", "write_scratches",
+__all__ = ["DATA_KEY", "StoredScratchesError", "StoredSet", "read_scratches", "read_scratch_file", "write_scratches",
            "clear_scratches", "has_scratches", "scratch_summary", "scratch_token", "raw_scratch_bytes"]
 
 DATA_KEY = "_scratch_iridescence"        # bytes of the scratch file (hidden: leading underscore)
@@ -38,6 +39,14 @@ SUMMARY_KEY = "_scratch_iridescence_summary"  # {count, mean_width, mean_depth}
 # SHA-256 of the stored bytes -> their ScratchSet, for the last few decoded sets (least recent first).
 _decoded: OrderedDict[bytes, ScratchSet] = OrderedDict()
 _CACHE_SIZE = 8
+
+
+class StoredSet(NamedTuple):
+    """An object's decoded scratches with the stored bytes they came from."""
+
+    scratches: ScratchSet
+    data: bytes | None  #: None when the object has no scratches
+    digest: bytes | None  #: SHA-256 of ``data``: a cache key that follows the bytes, unlike the token
 
 
 class StoredScratchesError(ScratchFormatError):
@@ -95,14 +104,15 @@ def read_scratches(obj) -> ScratchSet:
         If the stored bytes are damaged (edited by hand, a damaged .blend, or
         written by a newer version of the add-on).
     """
-    return read_scratch_file(obj)[0]
+    return read_scratch_file(obj).scratches
 
 
-def read_scratch_file(obj) -> tuple[ScratchSet, bytes | None]:
-    """The object's scratches and the stored bytes they were decoded from (None when it has none).
+def read_scratch_file(obj) -> StoredSet:
+    """The object's scratches, the stored bytes they were decoded from and their digest.
 
     Export writes exactly these bytes: they are the ones just validated, even
-    if the ID property changes afterwards.
+    if the ID property changes afterwards.  Caches of data derived from the
+    scratches (the eraser's lines) key on the digest.
 
     Raises
     ------
@@ -111,7 +121,7 @@ def read_scratch_file(obj) -> tuple[ScratchSet, bytes | None]:
     """
     data = raw_scratch_bytes(obj)
     if data is None:
-        return ScratchSet.empty(), None
+        return StoredSet(ScratchSet.empty(), None, None)
     digest = hashlib.sha256(data).digest()
     scratches = _decoded.get(digest)
     if scratches is None:
@@ -122,7 +132,7 @@ def read_scratch_file(obj) -> tuple[ScratchSet, bytes | None]:
         _remember(digest, scratches)
     else:
         _decoded.move_to_end(digest)
-    return scratches, data
+    return StoredSet(scratches, data, digest)
 
 
 def _remember(digest: bytes, scratches: ScratchSet) -> None:
@@ -132,8 +142,8 @@ def _remember(digest: bytes, scratches: ScratchSet) -> None:
         _decoded.popitem(last=False)
 
 
-def write_scratches(obj, scratches: ScratchSet) -> None:
-    """Replace the object's scratches with ``scratches`` (an undo step is the caller's)."""
+def write_scratches(obj, scratches: ScratchSet) -> bytes:
+    """Replace the object's scratches with ``scratches`` (an undo step is the caller's); return their digest."""
     if not isinstance(scratches, ScratchSet):
         raise TypeError(f"expected a ScratchSet, got {type(scratches).__name__}")
     data = scratch.dumps(scratches)
@@ -149,7 +159,9 @@ def write_scratches(obj, scratches: ScratchSet) -> None:
         "mean_depth": float(scratches.depth.mean()) if scratches.count else 0.0,
     }
     obj[TOKEN_KEY] = secrets.token_hex(8)
-    _remember(hashlib.sha256(data).digest(), scratches)
+    digest = hashlib.sha256(data).digest()
+    _remember(digest, scratches)
+    return digest
 
 
 def clear_scratches(obj) -> None:

@@ -157,3 +157,16 @@ def test_property_of_another_type_is_the_same_error(stored):
     replace_bytes_keeping_the_token(stored, "a string, not bytes")
     with pytest.raises(storage.StoredScratchesError, match="holds str, not the bytes"):
         storage.read_scratches(stored)
+
+
+def test_eraser_maps_the_new_bytes_not_lines_cached_for_the_old_ones(stored):
+    line = [(-0.9, 0.0, 0.0), (0.9, 0.0, 0.0)]
+    erase = lambda: bpy.ops.scratch.erase_stroke("EXEC_DEFAULT", True, stroke=stroke(line), radius=0.3,  # noqa: E731
+                                                 erase_mode="WHOLE")
+    assert erase() == {"FINISHED"}  # caches the line pieces of what is stored now
+    replace_bytes_keeping_the_token(stored, scratch.dumps(SECOND))
+    erase()
+    left = storage.read_scratches(stored)
+    second = {SECOND.polyline(i).tobytes() for i in range(SECOND.count)}
+    assert 0 < left.count < SECOND.count
+    assert all(left.polyline(i).tobytes() in second for i in range(left.count))
