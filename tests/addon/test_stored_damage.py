@@ -6,6 +6,8 @@ bytes; damaged bytes give the same ``StoredScratchesError`` to the overlay, the
 eraser, Export, Export Mitsuba Scene and F12, never a traceback or a silent
 substitute.
 """
+import io
+
 import numpy as np
 import pytest
 
@@ -82,11 +84,8 @@ def test_damaged_blend_reopened_in_the_same_session_is_refused(stored, tmp_path)
 
 
 # ------------------------------------------------------- every reader, one error
-@pytest.fixture
-def broken(stored):
-    """The plane whose stored set has int64-wrapping offsets (written as a file would be, bypassing checks)."""
-    import io
-
+def overflowing_file() -> bytes:
+    """A scratch file whose offsets wrap around in int64 (the old check passed it)."""
     offsets = np.array([0, 2**63 - 1, -2**63 + 1, -1, 8], dtype=np.int64)
     count = len(offsets) - 1
     stream = io.BytesIO()
@@ -94,11 +93,26 @@ def broken(stored):
              width=np.full(count, 1e-6), depth=np.full(count, 1e-7), profile=np.zeros(count, np.uint8),
              width_variation=np.zeros((count, 2)), depth_variation=np.zeros((count, 2)),
              seed=np.zeros(count, np.uint32))
-    replace_bytes_keeping_the_token(stored, stream.getvalue())
+    return stream.getvalue()
+
+
+@pytest.fixture
+def broken(stored):
+    """The plane whose stored set is the overflowing file (as a damaged .blend would hold it)."""
+    replace_bytes_keeping_the_token(stored, overflowing_file())
     return stored
 
 
 MESSAGE = r"object 'Plane' \(stored scratches\): field 'offsets': offsets\[1\] is 9223372036854775807, outside"
+
+
+def test_import_refuses_the_file_and_keeps_the_stored_set(stored, tmp_path):
+    path = tmp_path / "overflow.npz"
+    path.write_bytes(overflowing_file())
+    before = storage.raw_scratch_bytes(stored)
+    with pytest.raises(RuntimeError, match=f"{path}: field 'offsets': offsets\\[1\\] is 9223372036854775807"):
+        bpy.ops.scratch.import_file(filepath=str(path), mode="ADD")
+    assert storage.raw_scratch_bytes(stored) == before
 
 
 def test_eraser_reports_the_damaged_set_and_keeps_it(broken):
