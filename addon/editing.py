@@ -39,9 +39,9 @@ def combine(obj, new: ScratchSet, mode: str) -> ScratchSet:
     return new
 
 
-def write(obj, scratches: ScratchSet) -> None:
-    """Store ``scratches`` on ``obj`` (the one write of an edit)."""
-    storage.write_scratches(obj, scratches)
+def write(obj, scratches: ScratchSet) -> bytes:
+    """Store ``scratches`` on ``obj`` (the one write of an edit); return the digest of the stored bytes."""
+    return storage.write_scratches(obj, scratches)
 
 
 def unit_scale(context) -> float:

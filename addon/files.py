@@ -111,8 +111,10 @@ class SCRATCH_OT_export_file(ObjectModeOperator, bpy.types.Operator, ExportHelpe
         obj = context.active_object
         try:
             check_object(obj)
-            stored = storage.read_scratches(obj)  # validates the stored bytes (decoded once, cached)
-            data = storage.raw_scratch_bytes(obj) or scratch.dumps(ScratchSet.empty())
+            # The bytes written are the ones just validated (a damaged set is refused, never exported).
+            stored, data, _ = storage.read_scratch_file(obj)
+            if data is None:
+                data = scratch.dumps(ScratchSet.empty())
             path = Path(bpy.path.abspath(self.filepath))
             scratch.save_bytes(data, path)
         except USER_ERRORS as error:

@@ -8,6 +8,10 @@ lazily inside the draw callback: background Blender has no GPU.  Lines are
 drawn in object space under the object's matrix, so moving the object costs
 nothing; they are lifted off the surface by a small fraction of the object's
 size to stay visible.
+
+Damaged stored scratches draw nothing; the failure is cached like the lines
+(one decode attempt per change, not one per redraw) and the Scratches panel
+shows its message (:func:`overlay_error`).
 """
 from __future__ import annotations
 
@@ -16,13 +20,14 @@ from dataclasses import dataclass
 import bpy
 import numpy as np
 
+from ..mitsuba_bridge.scratch import ScratchFormatError
 from . import storage
 from .editing import USER_ERRORS
 from .lines import overlay_arrays, scratch_lines
-from .mesh import cached, mesh_arrays
+from .mesh import cached, mesh_arrays, peek
 from .uvmap import UVLocator
 
-__all__ = ["OverlayData", "overlay_data", "register", "unregister"]
+__all__ = ["OverlayData", "overlay_data", "overlay_error", "register", "unregister"]
 
 #: Lines are lifted off the surface by this fraction of the object's size.
 LIFT_FRACTION = 2e-4
@@ -46,20 +51,42 @@ def overlay_data(obj, depsgraph) -> OverlayData:
     colour_by = obj.scratch.overlay_color_by
 
     def build_lines():
+        try:
+            scratches = storage.read_scratches(obj)
+        except ScratchFormatError as error:
+            return _Unreadable(token, error)
         arrays = mesh_arrays(obj, depsgraph)
         corners = arrays.corners
         normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
         normal /= np.maximum(np.linalg.norm(normal, axis=1), 1e-300)[:, None]
         size = float(np.linalg.norm(arrays.positions.max(axis=0) - arrays.positions.min(axis=0)))
-        return scratch_lines(storage.read_scratches(obj), UVLocator(arrays.triangle_uv), corners, normal,
+        return scratch_lines(scratches, UVLocator(arrays.triangle_uv), corners, normal,
                              offset=LIFT_FRACTION * size)
 
     def build_arrays():
         lines = cached("overlay_lines", obj, token, build_lines)
+        if isinstance(lines, _Unreadable):
+            raise lines.error.with_traceback(None)
         positions, colours, value_range = overlay_arrays(lines, colour_by)
         return OverlayData(positions, colours, value_range, lines.unplaced, (token, colour_by, id(lines)))
 
     return cached("overlay", obj, (token, colour_by), build_arrays)
+
+
+@dataclass(frozen=True)
+class _Unreadable:
+    """A stored set that failed to decode, cached in place of its lines."""
+
+    token: str | None
+    error: ScratchFormatError
+
+
+def overlay_error(obj) -> str | None:
+    """The message of the last failure to read ``obj``'s stored scratches for the overlay, if still current."""
+    lines = peek("overlay_lines", obj)
+    if isinstance(lines, _Unreadable) and lines.token == storage.scratch_token(obj):
+        return str(lines.error)
+    return None
 
 
 # ------------------------------------------------------------------ drawing

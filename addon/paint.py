@@ -135,12 +135,12 @@ class SCRATCH_OT_erase_stroke(StrokeOperator, StrokeProperties, bpy.types.Operat
     def execute(self, context):
         try:
             obj, surface, _, runs = _stroke_on_surface(self, context)
-            scratches = storage.read_scratches(obj)
+            scratches, _, digest = storage.read_scratch_file(obj)
             if scratches.count == 0:
                 self.report({"INFO"}, f"{obj.name} has no scratches to erase")
                 return {"CANCELLED"}
             locator = cached("uv_locator", obj, None, lambda: UVLocator(surface.uv, surface.usable))
-            key = (storage.scratch_token(obj), matrix_key(obj))
+            key = (digest, matrix_key(obj))  # the bytes' digest: lines never outlive the set they map
             lines = cached("erase_lines", obj, key, lambda: scratch_lines(scratches, locator, surface.corners))
             stroke_points = [p for _, _, p in runs]
             touched = touched_scratches(lines.a, lines.b, lines.scratch, stroke_points, self.radius,
@@ -161,9 +161,9 @@ class SCRATCH_OT_erase_stroke(StrokeOperator, StrokeProperties, bpy.types.Operat
                                                               kept.count)
             else:
                 result = kept
-            write(obj, result)
+            digest = write(obj, result)
             # The next stroke starts from these lines instead of mapping every scratch again.
-            cached("erase_lines", obj, (storage.scratch_token(obj), matrix_key(obj)), lambda: remaining_lines)
+            cached("erase_lines", obj, (digest, matrix_key(obj)), lambda: remaining_lines)
         except USER_ERRORS as error:
             return fail(self, error)
         if self.erase_mode == "CUT":

@@ -7,6 +7,7 @@ from . import storage
 from .files import SCRATCH_OT_clear, SCRATCH_OT_export_file, SCRATCH_OT_import_file
 from .generate import SCRATCH_OT_generate
 from .mesh import peek, scratch_uv_layer
+from .overlay import overlay_error
 from .units import format_length
 
 __all__ = ["SCRATCH_PT_scratches", "SCRATCH_PT_scratch_render", "SCRATCH_PT_scratch_overlay",
@@ -44,6 +45,9 @@ class SCRATCH_PT_scratches(_ObjectPanel, bpy.types.Panel):
         column = layout.column(align=True)
         for i, line in enumerate(summary_lines(obj)):
             column.label(text=line, icon="STROKE" if i == 0 else "BLANK1")
+        damaged = overlay_error(obj)
+        if damaged:
+            layout.label(text=damaged, icon="ERROR")
         layer = scratch_uv_layer(obj.data)
         if layer is None:
             layout.label(text="No UV map: unwrap the mesh to add scratches", icon="ERROR")

@@ -8,14 +8,16 @@ file behind.
 from __future__ import annotations
 
 import io
-import os
-import tempfile
-import zipfile
+import math
+import re
 from pathlib import Path
 
 import numpy as np
 
-from .scratchset import FIELD_SPECS, ScratchFormatError, ScratchSet, validate_arrays
+from .archive import ArchiveReader
+from .atomic import write_atomically
+from .scratchset import (FIELD_SPECS, MAX_SCRATCHES, MAX_VERTICES, ScratchFormatError, ScratchSet,
+                         validate_offsets)
 
 __all__ = ["FORMAT", "FORMAT_VERSION", "load", "save", "save_bytes", "loads", "dumps"]
 
@@ -23,6 +25,8 @@ FORMAT_NAME = "scratch-iridescence"
 FORMAT_VERSION = 1
 FORMAT = f"{FORMAT_NAME}/{FORMAT_VERSION}"
 KEYS = ("format",) + tuple(FIELD_SPECS)
+#: Longest format string read (``"scratch-iridescence/1"`` has 21 characters).
+MAX_FORMAT_CHARS = 64
 
 
 def load(path) -> ScratchSet:
@@ -58,7 +62,7 @@ def save(scratches: ScratchSet, path, *, compress: bool = False) -> Path:
     """
     if not isinstance(scratches, ScratchSet):  # fail before creating any file
         raise TypeError(f"expected a ScratchSet, got {type(scratches).__name__}")
-    return _write_atomically(path, lambda stream: _write(scratches, stream, compress))
+    return write_atomically(path, lambda stream: _write(scratches, stream, compress))
 
 
 def save_bytes(data: bytes, path) -> Path:
@@ -69,27 +73,7 @@ def save_bytes(data: bytes, path) -> Path:
     bytes are written as given, not validated.
     """
     data = bytes(data)
-    return _write_atomically(path, lambda stream: stream.write(data))
-
-
-def _write_atomically(path, write) -> Path:
-    path = Path(path)
-    folder = path.parent if str(path.parent) else Path(".")
-    handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
-    try:
-        with os.fdopen(handle, "wb") as stream:
-            write(stream)
-            stream.flush()
-            os.fsync(stream.fileno())
-        os.replace(temporary, path)
-    except BaseException:
-        # Interrupted or failed: remove the partial file, keep any old one intact.
-        try:
-            os.unlink(temporary)
-        except FileNotFoundError:
-            pass
-        raise
-    return path
+    return write_atomically(path, lambda stream: stream.write(data))
 
 
 def dumps(scratches: ScratchSet, *, compress: bool = False) -> bytes:
@@ -108,53 +92,86 @@ def _write(scratches: ScratchSet, stream, compress: bool) -> None:
 
 
 def _read(stream) -> ScratchSet:
-    try:
-        archive = np.load(stream, allow_pickle=False)
-    except (ValueError, OSError, EOFError, zipfile.BadZipFile) as error:
-        raise ScratchFormatError(f"not a scratch file (expected an .npz archive): {error}") from None
-    if not isinstance(archive, np.lib.npyio.NpzFile):
-        raise ScratchFormatError("not a scratch file (a single .npy array, expected an .npz archive)")
-
-    with archive:
-        names = set(archive.files)
-        if "format" not in names:
+    with ArchiveReader(stream) as archive:
+        if "format" not in archive.members:
             raise ScratchFormatError("missing (not a scratch-iridescence file?)", "format")
-        _check_format(_read_member(archive, "format"))
+        _check_format(archive.array("format", _format_header(archive)))
         for key in KEYS:
-            if key not in names:
+            if key not in archive.members:
                 raise ScratchFormatError("missing", key)
-        unknown = sorted(names - set(KEYS))
+        unknown = sorted(set(archive.members) - set(KEYS))
         if unknown:
             raise ScratchFormatError(f"unexpected key(s) {unknown} in a format-v{FORMAT_VERSION} file",
                                      unknown[0])
-        arrays = {key: _native(_read_member(archive, key)) for key in FIELD_SPECS}
+        headers = _field_headers(archive)
+        # Cheap members first: offsets must fit uv before uv, the largest member, is inflated.
+        offsets = _native(archive.array("offsets", headers["offsets"]))
+        validate_offsets(offsets, headers["uv"].shape[0])
+        arrays = {"offsets": offsets}
+        for key in FIELD_SPECS:
+            if key not in arrays:
+                arrays[key] = _native(archive.array(key, headers[key]))
+    return ScratchSet(**arrays)  # validates every field
 
-    validate_arrays(arrays)
-    return ScratchSet(**arrays)
+
+def _format_header(archive: ArchiveReader):
+    header = archive.header("format", max_data_bytes=4 * MAX_FORMAT_CHARS)
+    if header.shape != () or header.dtype.kind != "U":
+        raise ScratchFormatError(f"must be a 0-d string, got dtype {header.dtype} shape {header.shape}",
+                                 "format")
+    return header
 
 
-def _read_member(archive, key: str) -> np.ndarray:
-    """One array of the archive; a truncated or corrupt member names its key."""
-    try:
-        return archive[key]
-    except (ValueError, OSError, EOFError, zipfile.BadZipFile, KeyError) as error:
-        raise ScratchFormatError(f"cannot be read (truncated or corrupt file?): {error}", key) from None
+def _field_headers(archive: ArchiveReader) -> dict:
+    """The ``.npy`` headers of the eight fields, checked against the format before any data is inflated.
+
+    The counts come from ``offsets`` (S + 1 entries) and ``uv`` (P rows), each
+    bounded by the format's limits; every other field must then declare exactly S
+    rows, so the archive's total inflated size is bounded by the counts.
+    """
+    limits = {"offsets": MAX_SCRATCHES + 1, "uv": MAX_VERTICES}
+    headers = {key: _checked_header(archive, key, limits[key]) for key in ("offsets", "uv")}
+    count = headers["offsets"].shape[0] - 1
+    if count < 0:
+        raise ScratchFormatError("needs at least one entry (offsets[0] = 0)", "offsets")
+    if headers["uv"].shape[0] < 2 * count:
+        raise ScratchFormatError(f"describe {count:,} scratches but uv has {headers['uv'].shape[0]:,} vertices "
+                                 "(each scratch needs at least 2)", "offsets")
+    for key in FIELD_SPECS:
+        if key not in headers:
+            headers[key] = _checked_header(archive, key, count)
+            if headers[key].shape[0] != count:
+                raise ScratchFormatError(
+                    f"has {headers[key].shape[0]:,} entries but offsets describe {count:,} scratches", key)
+    return headers
+
+
+def _checked_header(archive: ArchiveReader, key: str, max_rows: int):
+    """The header of field ``key``: dtype (any byte order) and shape as FIELD_SPECS says, at most ``max_rows``."""
+    dtype, trailing = FIELD_SPECS[key]
+    header = archive.header(key, max_data_bytes=max_rows * dtype.itemsize * math.prod(trailing))
+    if header.dtype.newbyteorder("=") != dtype:
+        raise ScratchFormatError(f"dtype is {header.dtype}, expected {dtype}", key)
+    if len(header.shape) != 1 + len(trailing) or header.shape[1:] != trailing:
+        expected = "(N" + "".join(f", {t}" for t in trailing) + ")"
+        raise ScratchFormatError(f"shape is {header.shape}, expected {expected}", key)
+    return header
 
 
 def _check_format(value: np.ndarray) -> None:
-    if value.shape != () or value.dtype.kind != "U":
-        raise ScratchFormatError(f"must be a 0-d string, got dtype {value.dtype} shape {value.shape}",
-                                 "format")
-    text = str(value)
-    name, _, version = text.partition("/")
-    if name != FORMAT_NAME or not version.isdigit():
-        raise ScratchFormatError(f"is {text!r}, expected {FORMAT!r}", "format")
-    if int(version) > FORMAT_VERSION:
+    try:
+        text = str(value)
+    except (ValueError, UnicodeError):  # code points beyond Unicode
+        raise ScratchFormatError("is not a valid Unicode string", "format") from None
+    if text == FORMAT:
+        return
+    # Only the exact spelling written by a newer version (ASCII digits, no leading zero) is called newer.
+    newer = re.fullmatch(rf"{re.escape(FORMAT_NAME)}/([1-9][0-9]{{0,8}})", text)
+    if newer and int(newer.group(1)) > FORMAT_VERSION:
         raise ScratchFormatError(
             f"is {text!r}: written by a newer version of Scratch Iridescence; "
             f"this version reads format {FORMAT_VERSION}", "format")
-    if int(version) != FORMAT_VERSION:
-        raise ScratchFormatError(f"is {text!r}, expected {FORMAT!r}", "format")
+    raise ScratchFormatError(f"is {text!r}, expected exactly {FORMAT!r}", "format")
 
 
 def _native(array: np.ndarray) -> np.ndarray:

@@ -13,7 +13,13 @@ from typing import Iterable, Sequence
 
 import numpy as np
 
-__all__ = ["Profile", "ScratchFormatError", "ScratchSet", "FIELD_SPECS"]
+__all__ = ["Profile", "ScratchFormatError", "ScratchSet", "FIELD_SPECS", "MAX_SCRATCHES", "MAX_VERTICES",
+           "validate_arrays", "validate_offsets"]
+
+#: Most scratches a set (and a scratch file) may hold: 56 times the paper's densest scene (300 000).
+MAX_SCRATCHES = 2**24
+#: Most polyline vertices a set may hold (their ``uv`` array is then 1 GiB).
+MAX_VERTICES = 2**26
 
 
 class Profile(enum.IntEnum):
@@ -242,17 +248,8 @@ def validate_arrays(arrays: dict[str, np.ndarray]) -> None:
             raise ScratchFormatError(f"shape is {array.shape}, expected {expected}", name)
 
     uv, offsets = arrays["uv"], arrays["offsets"]
-    if len(offsets) < 1:
-        raise ScratchFormatError("needs at least one entry (offsets[0] = 0)", "offsets")
+    validate_offsets(offsets, len(uv))
     count = len(offsets) - 1
-    if offsets[0] != 0:
-        raise ScratchFormatError(f"offsets[0] is {offsets[0]}, expected 0", "offsets")
-    if offsets[-1] != len(uv):
-        raise ScratchFormatError(f"offsets[-1] is {offsets[-1]} but uv has {len(uv)} vertices", "offsets")
-    if count and np.any(np.diff(offsets) < 2):
-        bad = int(np.argmax(np.diff(offsets) < 2))
-        raise ScratchFormatError(
-            f"scratch {bad} has {offsets[bad + 1] - offsets[bad]} vertices; each needs at least 2", "offsets")
     for name in FIELD_SPECS:
         if name not in ("uv", "offsets") and len(arrays[name]) != count:
             raise ScratchFormatError(
@@ -272,3 +269,36 @@ def validate_arrays(arrays: dict[str, np.ndarray]) -> None:
         raise ScratchFormatError(
             f"unknown profile code(s) {unknown}; known: "
             + ", ".join(f"{int(p)} = {p.name.lower()}" for p in Profile), "profile")
+
+
+def validate_offsets(offsets: np.ndarray, vertex_count: int) -> None:
+    """Check ``offsets`` (int64, shape (S + 1,)) against ``vertex_count`` P and the format's limits.
+
+    Every entry is compared with 0 and P before any difference is taken, so
+    entries near the int64 limits cannot wrap around into valid-looking steps.
+
+    Raises
+    ------
+    ScratchFormatError
+        For field ``offsets`` (or ``uv`` when P exceeds :data:`MAX_VERTICES`).
+    """
+    if vertex_count > MAX_VERTICES:
+        raise ScratchFormatError(f"{vertex_count:,} vertices; at most {MAX_VERTICES:,} are allowed", "uv")
+    if len(offsets) < 1:
+        raise ScratchFormatError("needs at least one entry (offsets[0] = 0)", "offsets")
+    if len(offsets) - 1 > MAX_SCRATCHES:
+        raise ScratchFormatError(f"describes {len(offsets) - 1:,} scratches; at most {MAX_SCRATCHES:,} are "
+                                 "allowed", "offsets")
+    if offsets[0] != 0:
+        raise ScratchFormatError(f"offsets[0] is {offsets[0]}, expected 0", "offsets")
+    if offsets[-1] != vertex_count:
+        raise ScratchFormatError(f"offsets[-1] is {offsets[-1]} but uv has {vertex_count} vertices", "offsets")
+    outside = (offsets < 0) | (offsets > vertex_count)
+    if outside.any():
+        bad = int(np.argmax(outside))
+        raise ScratchFormatError(f"offsets[{bad}] is {offsets[bad]}, outside [0, {vertex_count}]", "offsets")
+    steps = np.diff(offsets)  # entries lie in [0, P]: no overflow
+    if len(steps) and np.any(steps < 2):
+        bad = int(np.argmax(steps < 2))
+        raise ScratchFormatError(
+            f"scratch {bad} has {steps[bad]} vertices; each needs at least 2", "offsets")

@@ -53,9 +53,11 @@ def main():
         t_save, _ = best_of(args.repeat, lambda: scratch.save(scratches, path))
         t_load, loaded = best_of(args.repeat, lambda: scratch.load(path))
         _, peak_io = tracemalloc.get_traced_memory()
+        t_numpy, _ = best_of(args.repeat, lambda: numpy_load(path))
         size = path.stat().st_size
         t_save_c, _ = best_of(1, lambda: scratch.save(scratches, path, compress=True))
-        t_load_c, _ = best_of(1, lambda: scratch.load(path))
+        t_load_c, _ = best_of(args.repeat, lambda: scratch.load(path))
+        t_numpy_c, _ = best_of(args.repeat, lambda: numpy_load(path))
         size_c = path.stat().st_size
     tracemalloc.stop()
     assert loaded == scratches
@@ -67,12 +69,23 @@ def main():
           f"file {size / mb:.0f} MB")
     print(f"  compressed        {t_save_c + t_load_c:7.3f} s   (save {t_save_c:.3f}, load {t_load_c:.3f}), "
           f"file {size_c / mb:.0f} MB")
+    # The checked reader against numpy.load + validation of the same file, in this run (the machine is noisy).
+    print(f"  load / numpy.load {t_load / t_numpy:7.2f}     (uncompressed; {t_load_c / t_numpy_c:.2f} compressed): "
+          "the cost of checking headers and sizes before inflating")
     # The whole workflow once, in a fresh process, for an honest resident-memory figure.
     child = subprocess.run([sys.executable, __file__, "--memory-run", "--count", str(args.count),
                             "--vertices", str(args.vertices)], capture_output=True, text=True, check=True)
     print(f"  peak numpy memory: sampling {peak_sample / mb:.0f} MB, save/load {peak_io / mb:.0f} MB")
     print(f"  max resident set of sample -> save -> load in a fresh process: {child.stdout.strip()} MB "
           f"(interpreter and numpy alone: {baseline_rss():.0f} MB; target < 200 MB)")
+
+
+def numpy_load(path) -> scratch.ScratchSet:
+    """The file read with plain ``numpy.load``, then validated: the reference for the checked reader's cost."""
+    import numpy as np
+
+    with np.load(path, allow_pickle=False) as archive:
+        return scratch.ScratchSet(**{key: archive[key] for key in archive.files if key != "format"})
 
 
 def peak_rss_mb() -> float:

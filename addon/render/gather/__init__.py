@@ -134,8 +134,8 @@ def _scratched_metal(obj, scene, has_uvs: bool, warnings: Warnings) -> Scratched
     try:
         scratches = read_scratches(obj)
     except ScratchFormatError as error:
-        warnings.warn(f"object '{obj.name}': its scratches cannot be read ({error}): rendered without scratches")
-        scratches = ScratchSet.empty()
+        # Like every reader of a stored set (overlay, eraser, export): one clear error, no silent substitute.
+        raise GatherError(str(error)) from None
     if not has_uvs and scratches.count:
         warnings.warn(f"object '{obj.name}' carries scratches but has no UV map: rendered without scratches; "
                       "add a UV map (the scratches live in UV space)")
