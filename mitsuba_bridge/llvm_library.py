@@ -1,0 +1,156 @@
+"""The libLLVM that Dr.Jit's CPU backend loads: a bundled one when present, and a check before any kernel.
+
+Dr.Jit 1.5 compiles CPU kernels through the LLVM C API of a shared library it
+opens when ``drjit`` is imported: ``DRJIT_LIBLLVM_PATH`` when set (and then
+nothing else), else ``libLLVM.so`` on the loader path, else the newest
+``/usr/lib/<triple>/libLLVM*.so.*`` (Homebrew's on macOS, ``LLVM-C.dll`` on
+Windows).  With LLVM 15 or older the first kernel **aborts the process**
+(``LLVM ERROR: Cannot select ... fminimum``, SIGABRT), which inside Blender loses
+the user's unsaved work; an exception cannot catch it.  Hence two steps:
+
+* :func:`configure` runs when :mod:`mitsuba_bridge` is imported, before ``drjit``
+  is: where the extension bundles a libLLVM wheel (Linux x64:
+  ``karellen-llvm-core``, see docs/rendering.md) and the user has not chosen a
+  library, it points ``DRJIT_LIBLLVM_PATH`` at it;
+* :func:`llvm_problem` asks Dr.Jit which library it loaded and returns what to
+  install when it is missing or older than :data:`MIN_LLVM_MAJOR`;
+  :mod:`mitsuba_bridge.variants` refuses the CPU variant with that message, so
+  no kernel is ever compiled with an unusable LLVM.
+"""
+from __future__ import annotations
+
+import ctypes
+import os
+import sys
+from pathlib import Path
+
+__all__ = ["MIN_LLVM_MAJOR", "ENV_VAR", "BUNDLED_DISTRIBUTION", "bundled_library", "configure",
+           "llvm_version", "llvm_problem", "install_hint"]
+
+#: Oldest LLVM major version Dr.Jit 1.5 renders with (15 aborts on the first kernel that uses min/max).
+MIN_LLVM_MAJOR = 16
+#: Dr.Jit reads this once, when ``drjit`` is imported.
+ENV_VAR = "DRJIT_LIBLLVM_PATH"
+#: The wheel that ships a libLLVM exporting the C API (Apache-2.0 WITH LLVM-exception), Linux x64 only.
+BUNDLED_DISTRIBUTION = "karellen-llvm-core"
+
+#: Its C++ runtime, in load order.  The wheel stores them as ``*.so.1.0`` and relies on a post-install
+#: hook (wheel-axle) for the ``*.so.1`` links that libLLVM's NEEDED entries name; Blender's wheel
+#: installer runs no hooks, so they are loaded by path first and the dynamic loader then matches them
+#: by their SONAME.
+_BUNDLED_RUNTIME = ("libunwind.so.1.0", "libc++abi.so.1.0", "libc++.so.1.0")
+
+#: What :func:`configure` did, for messages: the bundled library it selected, if any.
+_selected_bundled: Path | None = None
+
+
+def bundled_library() -> Path | None:
+    """The libLLVM shared library of the installed ``karellen-llvm-core`` wheel, or None.
+
+    Works for both layouts: pip puts the wheel's data files under the
+    environment's ``lib/``, Blender's extension installer leaves them in
+    ``karellen_llvm_core-<version>.data/data/lib/`` inside its site-packages;
+    the wheel's RECORD names the file either way.
+    """
+    from importlib import metadata
+
+    try:
+        distribution = metadata.distribution(BUNDLED_DISTRIBUTION)
+    except metadata.PackageNotFoundError:
+        return None
+    for file in distribution.files or ():
+        if file.name.startswith("libLLVM.so."):
+            path = Path(distribution.locate_file(file)).resolve()
+            if path.is_file():
+                return path
+    return None
+
+
+def _load_runtime(library: Path) -> None:
+    """Load the bundled libc++ beside ``library`` so that dlopen of libLLVM finds it by SONAME."""
+    for folder in (library.parent, *library.parent.glob("*-linux-gnu")):
+        runtime = [folder / name for name in _BUNDLED_RUNTIME]
+        if all(path.is_file() for path in runtime):
+            for path in runtime:
+                ctypes.CDLL(str(path))
+            return
+
+
+def configure() -> Path | None:
+    """Point Dr.Jit at the bundled libLLVM unless the user chose one; returns the library selected.
+
+    Must run before ``drjit`` is first imported (Dr.Jit reads ``DRJIT_LIBLLVM_PATH``
+    then, once); :mod:`mitsuba_bridge` calls it on import.  Does nothing when
+    ``DRJIT_LIBLLVM_PATH`` is already set (the user's choice wins), when
+    ``drjit`` is already loaded, or when no bundled library is installed.
+    """
+    global _selected_bundled
+    if os.environ.get(ENV_VAR) or "drjit" in sys.modules:
+        return None
+    library = bundled_library()
+    if library is None:
+        return None
+    try:
+        _load_runtime(library)
+    except OSError as error:  # e.g. a system without libatomic.so.1: fall back to the system's LLVM
+        print(f"Scratch Iridescence: the bundled LLVM is unusable here ({error}); using the system's",
+              file=sys.stderr)
+        return None
+    os.environ[ENV_VAR] = str(library)
+    _selected_bundled = library
+    return library
+
+
+def llvm_version() -> tuple[int, int, int] | None:
+    """(major, minor, patch) of the libLLVM Dr.Jit loaded, or None when it loaded none."""
+    import drjit as dr
+
+    if not dr.has_backend(dr.JitBackend.LLVM):
+        return None
+    version = tuple(int(part) for part in dr.detail.llvm_version())
+    # Dr.Jit reports -1 when it loaded a library but could not tell the version (before LLVM 16,
+    # which added LLVMGetVersion, it guesses from symbols; -1 means "older than it knows").
+    return version if version[0] >= 0 else (0, 0, 0)
+
+
+def llvm_problem() -> str | None:
+    """None when Dr.Jit's CPU backend can render safely, else a message saying what to install.
+
+    Reads only what Dr.Jit found at import; compiles nothing, so it is safe to
+    call where an unusable LLVM would abort the process on the first kernel.
+    """
+    version = llvm_version()
+    chosen = os.environ.get(ENV_VAR)
+    if version is None:
+        where = (f"{ENV_VAR}={chosen!r} could not be loaded" if chosen
+                 else "no libLLVM was found")
+        return f"Mitsuba's CPU backend needs the LLVM library (libLLVM {MIN_LLVM_MAJOR} or newer): {where}. " \
+               + install_hint()
+    if version[0] < MIN_LLVM_MAJOR:
+        found = ".".join(str(part) for part in version) if version[0] > 0 else "an unknown old version"
+        source = f" (from {ENV_VAR}={chosen!r})" if chosen else ""
+        return (f"Mitsuba's CPU backend found LLVM {found}{source}, which would crash the renderer "
+                f"(Dr.Jit needs LLVM {MIN_LLVM_MAJOR} or newer). " + install_hint())
+    return None
+
+
+def install_hint(platform: str | None = None) -> str:
+    """What to install, for ``platform`` (``sys.platform`` by default)."""
+    platform = platform or sys.platform
+    bundled = bundled_library() if platform == sys.platform else None
+    if platform.startswith("linux"):
+        text = ("Install LLVM 16 or newer (Debian 12/Ubuntu: 'sudo apt install libllvm19'; Fedora: "
+                "'sudo dnf install llvm-libs'; Arch: 'sudo pacman -S llvm-libs')")
+        if bundled is not None and os.environ.get(ENV_VAR) != str(bundled):
+            text += f", or unset {ENV_VAR} to use the LLVM bundled with the extension ({bundled})"
+        elif bundled is None:
+            text += ", or install the extension zip for linux-x64, which bundles LLVM"
+    elif platform == "darwin":
+        text = "Install LLVM with Homebrew ('brew install llvm'); Dr.Jit finds Homebrew's libLLVM.dylib by itself"
+    elif platform.startswith("win"):
+        text = ("Install LLVM 16 or newer for Windows x64 (the LLVM-*-win64.exe installer from the LLVM "
+                "releases page, with 'Add LLVM to the system PATH') so that LLVM-C.dll is found")
+    else:
+        text = "Install LLVM 16 or newer"
+    return (text + f", or set {ENV_VAR} to the full path of a libLLVM {MIN_LLVM_MAJOR}+ library; "
+            "then restart Blender. An NVIDIA GPU with a CUDA driver renders without LLVM.")

@@ -1,0 +1,138 @@
+"""An unusable libLLVM is refused before any kernel compiles; never an abort (issue 10 item 5).
+
+The LLVM-15 cases run in a subprocess with ``DRJIT_LIBLLVM_PATH`` pointing at a
+real libLLVM 15 (Debian's ``libllvm15``): Dr.Jit reads the variable once, at
+``import drjit``, and with that library the first kernel aborts the process, so
+the crash itself can only be observed from outside.
+"""
+from __future__ import annotations
+
+import glob
+import os
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from mitsuba_bridge import llvm_library, variants
+
+dr = pytest.importorskip("drjit")
+
+ROOT = Path(__file__).resolve().parents[2]
+
+#: A real libLLVM 15, where Debian's ``libllvm15`` (or llvm.org's packages) put it.
+LLVM15 = next(iter(sorted(glob.glob("/usr/lib/x86_64-linux-gnu/libLLVM-15.so*")
+                          + glob.glob("/usr/lib/llvm-15/lib/libLLVM-15.so*"))), None)
+needs_llvm15 = pytest.mark.skipif(
+    LLVM15 is None, reason="no libLLVM 15 on this machine (Debian: 'apt-get install libllvm15'); "
+                           "the LLVM-15 simulation needs the real library")
+
+#: What used to happen inside Blender: the CPU variant, then the first kernel (min/max: 'fminimum').
+UNCHECKED = """
+import drjit as dr, mitsuba as mi
+print('LLVM', dr.detail.llvm_version(), flush=True)
+mi.set_variant('llvm_ad_spectral')
+print(dr.minimum(mi.Float([1, 2, 3]), mi.Float(2.0)), flush=True)
+print('SURVIVED')
+"""
+
+#: The bridge's way in: choose the variant (which checks the LLVM), then render the Cornell box at 1 spp.
+CHECKED = """
+from mitsuba_bridge import variants
+try:
+    variant = variants.activate('auto')
+except variants.VariantError as error:
+    print('REFUSED', error)
+else:
+    import mitsuba as mi
+    image = mi.render(mi.load_dict(mi.cornell_box()), spp=1)
+    print('RENDERED', variant, image.shape)
+import drjit as dr, mitsuba as mi
+print('LLVM', dr.detail.llvm_version(), 'VARIANT', mi.variant())
+"""
+
+
+def run_python(code: str, tmp_path: Path, library: str | None) -> subprocess.CompletedProcess:
+    """``code`` in a fresh interpreter with Dr.Jit pointed at ``library`` and an empty kernel cache.
+
+    The empty cache matters: a kernel compiled earlier by a good LLVM would be reused
+    instead of compiled, and LLVM 15 would then not get the chance to abort.
+    """
+    env = {key: value for key, value in os.environ.items() if key != llvm_library.ENV_VAR}
+    env["DRJIT_CACHE_DIR"] = str(tmp_path / "drjit-cache")
+    if library is not None:
+        env[llvm_library.ENV_VAR] = library
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, cwd=tmp_path,
+                          timeout=300)
+
+
+@needs_llvm15
+def test_llvm15_really_aborts_the_process_on_the_first_kernel(tmp_path):
+    # The simulation is real: without the check, the process dies with SIGABRT (exit 134 in a shell).
+    result = run_python(UNCHECKED, tmp_path, LLVM15)
+    assert "LLVM (15," in result.stdout
+    assert result.returncode == -signal.SIGABRT, result.stdout + result.stderr
+    assert "LLVM ERROR" in result.stderr and "SURVIVED" not in result.stdout
+
+
+@needs_llvm15
+def test_llvm15_is_refused_before_any_kernel_with_what_to_install(tmp_path):
+    result = run_python(CHECKED, tmp_path, LLVM15)
+    log = result.stdout + result.stderr
+    assert result.returncode == 0, log
+    assert "REFUSED Mitsuba's CPU backend found LLVM 15.0" in result.stdout, log
+    assert f"DRJIT_LIBLLVM_PATH='{LLVM15}'" in result.stdout  # says where the bad library came from
+    assert "apt install libllvm19" in result.stdout  # and what to install instead
+    assert "VARIANT None" in result.stdout and "LLVM ERROR" not in log  # no variant set, nothing compiled
+
+
+@pytest.mark.parametrize("kind", ["missing", "not a library"])
+def test_a_library_path_that_is_not_llvm_is_a_clear_error(tmp_path, kind):
+    path = tmp_path / "libLLVM-fake.so"
+    if kind == "not a library":
+        path.write_bytes(b"\x7fELF" + bytes(range(256)) * 4)  # an ELF magic and garbage after it
+    result = run_python(CHECKED, tmp_path, str(path))
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert f"REFUSED Mitsuba's CPU backend needs the LLVM library (libLLVM 16 or newer): " \
+           f"DRJIT_LIBLLVM_PATH='{path}' could not be loaded" in result.stdout, result.stdout + result.stderr
+    assert "VARIANT None" in result.stdout
+
+
+def test_the_systems_llvm_renders_here(tmp_path):
+    # The positive case, in the same harness: the machine's own libLLVM (>= 16, installed by `make setup`).
+    result = run_python(CHECKED, tmp_path, None)
+    assert "RENDERED llvm_ad_spectral (256, 256, 3)" in result.stdout, result.stdout + result.stderr
+    major = int(result.stdout.split("LLVM (")[1].split(",")[0])
+    assert major >= llvm_library.MIN_LLVM_MAJOR
+
+
+def test_an_old_llvm_is_refused_in_process_without_compiling(monkeypatch):
+    monkeypatch.setattr(dr, "has_backend", lambda backend: backend == dr.JitBackend.LLVM)
+    monkeypatch.setattr(dr.detail, "llvm_version", lambda: (15, 0, 6))
+    with pytest.raises(variants.VariantError, match=r"found LLVM 15\.0\.6, which would crash"):
+        variants.choose_variant("auto")
+    with pytest.raises(variants.VariantError, match=r"found LLVM 15\.0\.6"):
+        variants.choose_variant("llvm_ad_spectral")
+    # Dr.Jit reports -1 when a library loaded without LLVMGetVersion, which LLVM 16 added: too old too.
+    monkeypatch.setattr(dr.detail, "llvm_version", lambda: (-1, -1, -1))
+    with pytest.raises(variants.VariantError, match="an unknown old version"):
+        variants.choose_variant("auto")
+
+
+def test_cuda_is_tried_first_and_an_old_llvm_does_not_matter_then(monkeypatch):
+    monkeypatch.setattr(dr, "has_backend", lambda backend: True)
+    monkeypatch.setattr(dr.detail, "llvm_version", lambda: (15, 0, 6))
+    assert variants.choose_variant("auto") == "cuda_ad_spectral"
+
+
+@pytest.mark.parametrize("platform, expected", [
+    ("linux", "apt install libllvm19"),
+    ("darwin", "brew install llvm"),
+    ("win32", "LLVM-C.dll"),
+])
+def test_the_install_hint_names_the_fix_for_each_platform(platform, expected):
+    hint = llvm_library.install_hint(platform)
+    assert expected in hint
+    assert "DRJIT_LIBLLVM_PATH" in hint and "restart Blender" in hint and "CUDA" in hint
