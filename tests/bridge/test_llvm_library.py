@@ -4,14 +4,22 @@ The LLVM-15 cases run in a subprocess with ``DRJIT_LIBLLVM_PATH`` pointing at a
 real libLLVM 15 (Debian's ``libllvm15``): Dr.Jit reads the variable once, at
 ``import drjit``, and with that library the first kernel aborts the process, so
 the crash itself can only be observed from outside.
+
+"Only LLVM 15 on the system" is simulated without ``DRJIT_LIBLLVM_PATH`` too: a
+folder on ``LD_LIBRARY_PATH`` whose ``libLLVM.so`` is LLVM 15 is what Dr.Jit's
+``dlopen("libLLVM.so")`` finds first.  There, the extension's bundled libLLVM
+wheel (installed the way Blender installs extension wheels) must render.
 """
 from __future__ import annotations
 
 import glob
 import os
 import signal
+import importlib.util
+import platform
 import subprocess
 import sys
+import tomllib
 from pathlib import Path
 
 import pytest
@@ -54,7 +62,7 @@ print('LLVM', dr.detail.llvm_version(), 'VARIANT', mi.variant())
 """
 
 
-def run_python(code: str, tmp_path: Path, library: str | None) -> subprocess.CompletedProcess:
+def run_python(code: str, tmp_path: Path, library: str | None, **extra_env: str) -> subprocess.CompletedProcess:
     """``code`` in a fresh interpreter with Dr.Jit pointed at ``library`` and an empty kernel cache.
 
     The empty cache matters: a kernel compiled earlier by a good LLVM would be reused
@@ -64,6 +72,7 @@ def run_python(code: str, tmp_path: Path, library: str | None) -> subprocess.Com
     env["DRJIT_CACHE_DIR"] = str(tmp_path / "drjit-cache")
     if library is not None:
         env[llvm_library.ENV_VAR] = library
+    env.update(extra_env)
     return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, cwd=tmp_path,
                           timeout=300)
 
@@ -136,3 +145,77 @@ def test_the_install_hint_names_the_fix_for_each_platform(platform, expected):
     hint = llvm_library.install_hint(platform)
     assert expected in hint
     assert "DRJIT_LIBLLVM_PATH" in hint and "restart Blender" in hint and "CUDA" in hint
+
+
+def manifest_llvm_wheel() -> Path:
+    """wheels/<the karellen-llvm-core wheel that blender_manifest.toml bundles> (downloaded by `make setup`)."""
+    manifest = tomllib.loads((ROOT / "blender_manifest.toml").read_text())
+    name = next(Path(entry).name for entry in manifest["wheels"]
+                if Path(entry).name.startswith("karellen_llvm_core-"))
+    return ROOT / "wheels" / name
+
+
+LLVM_WHEEL = manifest_llvm_wheel()
+needs_llvm_wheel = pytest.mark.skipif(
+    not LLVM_WHEEL.is_file() or (sys.platform, platform.machine()) != ("linux", "x86_64"),
+    reason=f"the bundled libLLVM wheel wheels/{LLVM_WHEEL.name} is Linux x64 only and fetched by 'make setup'")
+
+
+@pytest.fixture(scope="module")
+def system_with_only_llvm15(tmp_path_factory):
+    """LD_LIBRARY_PATH for a folder whose libLLVM.so is LLVM 15: what Dr.Jit loads when nothing else is said."""
+    folder = tmp_path_factory.mktemp("system-llvm15")
+    (folder / "libLLVM.so").symlink_to(LLVM15)
+    return {"LD_LIBRARY_PATH": str(folder)}
+
+
+@pytest.fixture(scope="module")
+def blender_site_packages(tmp_path_factory):
+    """The bundled wheel installed by Blender's own extension wheel installer (from the bpy wheel)."""
+    spec = importlib.util.find_spec("bpy")
+    if spec is None or spec.origin is None:
+        pytest.skip("the bpy module provides Blender's wheel installer")
+    source = next(Path(spec.origin).parent.glob("[0-9]*.[0-9]*/scripts/modules/_bpy_internal/extensions/"
+                                                 "wheel_manager.py"))
+    module_spec = importlib.util.spec_from_file_location("blender_wheel_manager", source)
+    wheel_manager = importlib.util.module_from_spec(module_spec)
+    module_spec.loader.exec_module(wheel_manager)
+    local = tmp_path_factory.mktemp("extensions") / ".local"
+    site = local / "lib" / f"python{sys.version_info[0]}.{sys.version_info[1]}" / "site-packages"
+    errors = []
+    wheel_manager.apply_action(local_dir=str(local), local_dir_site_packages=str(site),
+                               wheel_list=[("scratch_iridescence", [str(LLVM_WHEEL)])],
+                               error_fn=errors.append, remove_error_fn=lambda path, error: errors.append(error),
+                               debug=False)
+    assert not errors, errors
+    return site
+
+
+@needs_llvm15
+def test_a_system_with_only_llvm15_aborts_unchecked_and_is_refused_checked(tmp_path, system_with_only_llvm15):
+    unchecked = run_python(UNCHECKED, tmp_path, None, **system_with_only_llvm15)
+    assert "LLVM (15," in unchecked.stdout and unchecked.returncode == -signal.SIGABRT
+    checked = run_python(CHECKED, tmp_path, None, **system_with_only_llvm15)
+    assert checked.returncode == 0, checked.stdout + checked.stderr
+    assert "REFUSED Mitsuba's CPU backend found LLVM 15.0" in checked.stdout, checked.stdout + checked.stderr
+
+
+@needs_llvm15
+@needs_llvm_wheel
+def test_the_bundled_llvm_renders_where_the_system_has_only_llvm15(tmp_path, system_with_only_llvm15,
+                                                                   blender_site_packages):
+    # Blender leaves the wheel's data files where the wheel put them, and runs no post-install hook.
+    assert list(blender_site_packages.glob("karellen_llvm_core-*.data/data/lib/libLLVM.so.*"))
+    result = run_python(CHECKED, tmp_path, None, PYTHONPATH=str(blender_site_packages), **system_with_only_llvm15)
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert "RENDERED llvm_ad_spectral (256, 256, 3)" in result.stdout, result.stdout + result.stderr
+    assert f"LLVM ({LLVM_WHEEL.name.split('-')[1].split('.')[0]}," in result.stdout
+
+
+@needs_llvm15
+@needs_llvm_wheel
+def test_the_users_choice_of_library_wins_over_the_bundled_one(tmp_path, blender_site_packages):
+    result = run_python(CHECKED, tmp_path, LLVM15, PYTHONPATH=str(blender_site_packages))
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert "REFUSED Mitsuba's CPU backend found LLVM 15.0" in result.stdout
+    assert "unset DRJIT_LIBLLVM_PATH to use the LLVM bundled with the extension" in result.stdout
