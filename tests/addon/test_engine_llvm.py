@@ -14,8 +14,6 @@ from pathlib import Path
 import pytest
 
 pytest.importorskip("bpy")
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bridge"))
-from test_llvm_library import LLVM15, needs_llvm15  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -40,10 +38,9 @@ print("SAVED")
 """
 
 
-@needs_llvm15
-def test_f12_with_llvm15_is_an_error_and_the_work_can_still_be_saved(tmp_path):
+def test_f12_with_llvm15_is_an_error_and_the_work_can_still_be_saved(tmp_path, llvm15):
     env = {"PATH": "/usr/bin:/bin", "HOME": str(Path.home()), "TMPDIR": str(tmp_path),
-           "DRJIT_CACHE_DIR": str(tmp_path / "drjit-cache"), "DRJIT_LIBLLVM_PATH": LLVM15}
+           "DRJIT_CACHE_DIR": str(tmp_path / "drjit-cache"), "DRJIT_LIBLLVM_PATH": llvm15}
     output, blend = tmp_path / "out.png", tmp_path / "work.blend"
     result = subprocess.run([sys.executable, "-c", F12_THEN_SAVE, str(output), str(blend)], capture_output=True,
                             text=True, cwd=ROOT, env=env, timeout=300)

@@ -30,13 +30,6 @@ dr = pytest.importorskip("drjit")
 
 ROOT = Path(__file__).resolve().parents[2]
 
-#: A real libLLVM 15, where Debian's ``libllvm15`` (or llvm.org's packages) put it.
-LLVM15 = next(iter(sorted(glob.glob("/usr/lib/x86_64-linux-gnu/libLLVM-15.so*")
-                          + glob.glob("/usr/lib/llvm-15/lib/libLLVM-15.so*"))), None)
-needs_llvm15 = pytest.mark.skipif(
-    LLVM15 is None, reason="no libLLVM 15 on this machine (Debian: 'apt-get install libllvm15'); "
-                           "the LLVM-15 simulation needs the real library")
-
 #: What used to happen inside Blender: the CPU variant, then the first kernel (min/max: 'fminimum').
 UNCHECKED = """
 import drjit as dr, mitsuba as mi
@@ -77,22 +70,20 @@ def run_python(code: str, tmp_path: Path, library: str | None, **extra_env: str)
                           timeout=300)
 
 
-@needs_llvm15
-def test_llvm15_really_aborts_the_process_on_the_first_kernel(tmp_path):
+def test_llvm15_really_aborts_the_process_on_the_first_kernel(tmp_path, llvm15):
     # The simulation is real: without the check, the process dies with SIGABRT (exit 134 in a shell).
-    result = run_python(UNCHECKED, tmp_path, LLVM15)
+    result = run_python(UNCHECKED, tmp_path, llvm15)
     assert "LLVM (15," in result.stdout
     assert result.returncode == -signal.SIGABRT, result.stdout + result.stderr
     assert "LLVM ERROR" in result.stderr and "SURVIVED" not in result.stdout
 
 
-@needs_llvm15
-def test_llvm15_is_refused_before_any_kernel_with_what_to_install(tmp_path):
-    result = run_python(CHECKED, tmp_path, LLVM15)
+def test_llvm15_is_refused_before_any_kernel_with_what_to_install(tmp_path, llvm15):
+    result = run_python(CHECKED, tmp_path, llvm15)
     log = result.stdout + result.stderr
     assert result.returncode == 0, log
     assert "REFUSED Mitsuba's CPU backend found LLVM 15.0" in result.stdout, log
-    assert f"DRJIT_LIBLLVM_PATH='{LLVM15}'" in result.stdout  # says where the bad library came from
+    assert f"DRJIT_LIBLLVM_PATH='{llvm15}'" in result.stdout  # says where the bad library came from
     assert "apt install libllvm19" in result.stdout  # and what to install instead
     assert "VARIANT None" in result.stdout and "LLVM ERROR" not in log  # no variant set, nothing compiled
 
@@ -120,7 +111,7 @@ def test_the_systems_llvm_renders_here(tmp_path):
 def test_an_old_llvm_is_refused_in_process_without_compiling(monkeypatch):
     monkeypatch.setattr(dr, "has_backend", lambda backend: backend == dr.JitBackend.LLVM)
     monkeypatch.setattr(dr.detail, "llvm_version", lambda: (15, 0, 6))
-    with pytest.raises(variants.VariantError, match=r"found LLVM 15\.0\.6, which would crash"):
+    with pytest.raises(variants.VariantError, match=r"found LLVM 15\.0\.6.*which would crash"):
         variants.choose_variant("auto")
     with pytest.raises(variants.VariantError, match=r"found LLVM 15\.0\.6"):
         variants.choose_variant("llvm_ad_spectral")
@@ -162,10 +153,10 @@ needs_llvm_wheel = pytest.mark.skipif(
 
 
 @pytest.fixture(scope="module")
-def system_with_only_llvm15(tmp_path_factory):
+def system_with_only_llvm15(tmp_path_factory, llvm15):
     """LD_LIBRARY_PATH for a folder whose libLLVM.so is LLVM 15: what Dr.Jit loads when nothing else is said."""
     folder = tmp_path_factory.mktemp("system-llvm15")
-    (folder / "libLLVM.so").symlink_to(LLVM15)
+    (folder / "libLLVM.so").symlink_to(llvm15)
     return {"LD_LIBRARY_PATH": str(folder)}
 
 
@@ -191,7 +182,6 @@ def blender_site_packages(tmp_path_factory):
     return site
 
 
-@needs_llvm15
 def test_a_system_with_only_llvm15_aborts_unchecked_and_is_refused_checked(tmp_path, system_with_only_llvm15):
     unchecked = run_python(UNCHECKED, tmp_path, None, **system_with_only_llvm15)
     assert "LLVM (15," in unchecked.stdout and unchecked.returncode == -signal.SIGABRT
@@ -200,7 +190,6 @@ def test_a_system_with_only_llvm15_aborts_unchecked_and_is_refused_checked(tmp_p
     assert "REFUSED Mitsuba's CPU backend found LLVM 15.0" in checked.stdout, checked.stdout + checked.stderr
 
 
-@needs_llvm15
 @needs_llvm_wheel
 def test_the_bundled_llvm_renders_where_the_system_has_only_llvm15(tmp_path, system_with_only_llvm15,
                                                                    blender_site_packages):
@@ -212,10 +201,9 @@ def test_the_bundled_llvm_renders_where_the_system_has_only_llvm15(tmp_path, sys
     assert f"LLVM ({LLVM_WHEEL.name.split('-')[1].split('.')[0]}," in result.stdout
 
 
-@needs_llvm15
 @needs_llvm_wheel
-def test_the_users_choice_of_library_wins_over_the_bundled_one(tmp_path, blender_site_packages):
-    result = run_python(CHECKED, tmp_path, LLVM15, PYTHONPATH=str(blender_site_packages))
+def test_the_users_choice_of_library_wins_over_the_bundled_one(tmp_path, llvm15, blender_site_packages):
+    result = run_python(CHECKED, tmp_path, llvm15, PYTHONPATH=str(blender_site_packages))
     assert result.returncode == 0, result.stdout + result.stderr
     assert "REFUSED Mitsuba's CPU backend found LLVM 15.0" in result.stdout
     assert "unset DRJIT_LIBLLVM_PATH to use the LLVM bundled with the extension" in result.stdout
