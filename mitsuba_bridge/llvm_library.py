@@ -122,8 +122,12 @@ def llvm_problem() -> str | None:
     version = llvm_version()
     chosen = os.environ.get(ENV_VAR)
     if version is None:
-        where = (f"{ENV_VAR}={chosen!r} could not be loaded" if chosen
-                 else "no libLLVM was found")
+        if chosen and _selected_bundled is not None and chosen == str(_selected_bundled):
+            where = f"the LLVM bundled with the extension ({chosen}) could not be loaded"
+        elif chosen:
+            where = f"{ENV_VAR}={chosen!r} could not be loaded"
+        else:
+            where = "no libLLVM was found"
         return f"Mitsuba's CPU backend needs the LLVM library (libLLVM {MIN_LLVM_MAJOR} or newer): {where}. " \
                + install_hint()
     if version[0] < MIN_LLVM_MAJOR:

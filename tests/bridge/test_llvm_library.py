@@ -17,6 +17,7 @@ import os
 import signal
 import importlib.util
 import platform
+import shutil
 import subprocess
 import sys
 import tomllib
@@ -207,3 +208,16 @@ def test_the_users_choice_of_library_wins_over_the_bundled_one(tmp_path, llvm15,
     assert result.returncode == 0, result.stdout + result.stderr
     assert "REFUSED Mitsuba's CPU backend found LLVM 15.0" in result.stdout
     assert "unset DRJIT_LIBLLVM_PATH to use the LLVM bundled with the extension" in result.stdout
+
+
+@needs_llvm_wheel
+def test_a_bundled_llvm_that_cannot_load_is_named_in_the_error(tmp_path, blender_site_packages):
+    # The wheel's libc++ gone (a damaged install): libLLVM cannot be opened, and the error says it was ours.
+    site = tmp_path / "site-packages"
+    shutil.copytree(blender_site_packages, site, symlinks=True)
+    for runtime in site.glob("karellen_llvm_core-*.data/data/lib/*-linux-gnu/libc++.so*"):
+        runtime.unlink()
+    result = run_python(CHECKED, tmp_path, None, PYTHONPATH=str(site))
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert "REFUSED Mitsuba's CPU backend needs the LLVM library (libLLVM 16 or newer): the LLVM bundled with " \
+           f"the extension ({site.resolve()}/karellen_llvm_core-" in result.stdout, result.stdout + result.stderr
