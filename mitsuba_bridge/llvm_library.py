@@ -15,17 +15,23 @@ the user's unsaved work; an exception cannot catch it.  Hence two steps:
 * :func:`llvm_problem` asks Dr.Jit which library it loaded and returns what to
   install when it is missing or older than :data:`MIN_LLVM_MAJOR`;
   :mod:`mitsuba_bridge.variants` refuses the CPU variant with that message, so
-  no kernel is ever compiled with an unusable LLVM.
+  no kernel is ever compiled with an unusable LLVM;
+* :func:`probe_problem` then renders a tiny scene with the same library in a
+  child process, once per process: a library that passes the version check but
+  still crashes (a broken build, an LLVM newer than Dr.Jit copes with) takes
+  the child down instead of Blender.
 """
 from __future__ import annotations
 
 import ctypes
 import os
+import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 __all__ = ["MIN_LLVM_MAJOR", "ENV_VAR", "BUNDLED_DISTRIBUTION", "bundled_library", "configure",
-           "llvm_version", "llvm_problem", "install_hint"]
+           "llvm_version", "llvm_problem", "probe_problem", "install_hint"]
 
 #: Oldest LLVM major version Dr.Jit 1.5 renders with (15 aborts on the first kernel that uses min/max).
 MIN_LLVM_MAJOR = 16
@@ -42,6 +48,14 @@ _BUNDLED_RUNTIME = ("libunwind.so.1.0", "libc++abi.so.1.0", "libc++.so.1.0")
 
 #: What :func:`configure` did, for messages: the bundled library it selected, if any.
 _selected_bundled: Path | None = None
+
+#: :func:`probe_problem`'s answers, keyed by (DRJIT_LIBLLVM_PATH, LLVM version).
+_probe_answers: dict[tuple[str, tuple[int, int, int] | None], str | None] = {}
+
+#: The child's work: this file run as a script loads the bundled libc++ if needed, then renders 8 x 8 pixels.
+_PROBE_SCRIPT = Path(__file__).resolve()
+_PROBE_MARK = "LLVM-PROBE-RENDERED"
+_PROBE_SECONDS = 120
 
 
 def bundled_library() -> Path | None:
@@ -138,6 +152,64 @@ def llvm_problem() -> str | None:
     return None
 
 
+def probe_problem() -> str | None:
+    """None unless a tiny render with Dr.Jit's libLLVM crashes a child process; then what to do.
+
+    Runs once per process and library (about 1.5 s; an empty kernel cache makes the
+    child really compile).  Only a crash refuses: a child that cannot start, cannot
+    import Mitsuba or times out says nothing about LLVM, so rendering goes ahead.
+    """
+    key = (os.environ.get(ENV_VAR, ""), llvm_version())
+    if key not in _probe_answers:
+        _probe_answers[key] = _run_probe()
+    return _probe_answers[key]
+
+
+def _run_probe() -> str | None:
+    env = dict(os.environ)
+    # The child finds Mitsuba where this process does (Blender adds the extension's site-packages itself).
+    env["PYTHONPATH"] = os.pathsep.join(path for path in sys.path if path)
+    with tempfile.TemporaryDirectory(prefix="scratch-llvm-probe-") as cache:
+        env["DRJIT_CACHE_DIR"] = cache
+        try:
+            # -P: the script's folder (this package) must not shadow top-level modules in the child.
+            # CREATE_NO_WINDOW: no console window flashes up over Blender on Windows.
+            child = subprocess.run([sys.executable, "-P", str(_PROBE_SCRIPT), "--probe"], env=env,
+                                   capture_output=True, text=True, timeout=_PROBE_SECONDS,
+                                   creationflags=getattr(subprocess, "CREATE_NO_WINDOW", 0))
+        except (OSError, subprocess.SubprocessError) as error:
+            print(f"Scratch Iridescence: LLVM probe not run ({error}); rendering without it", file=sys.stderr)
+            return None
+    if child.returncode == 0 and _PROBE_MARK in child.stdout:
+        return None
+    if child.returncode == 1:  # a Python exception in the child (e.g. no Mitsuba there): inconclusive
+        print(f"Scratch Iridescence: LLVM probe inconclusive:\n{child.stderr[-2000:]}", file=sys.stderr)
+        return None
+    lines = [line.strip() for line in child.stderr.splitlines() if line.strip()]
+    # LLVM states the reason on its "LLVM ERROR:" line and then dumps its internal graph: quote the reason.
+    reason = next((line for line in lines if "ERROR" in line), lines[-1] if lines else "no message")
+    version = ".".join(str(part) for part in (llvm_version() or ()))
+    return (f"Mitsuba's CPU backend crashed while compiling a test kernel with LLVM {version} "
+            f"(exit status {child.returncode}: {reason[:200]}); rendering here would crash Blender. "
+            + install_hint())
+
+
+def _probe_main() -> int:
+    """The child of :func:`probe_problem`: render 8 x 8 pixels of Mitsuba's Cornell box on the CPU."""
+    chosen = os.environ.get(ENV_VAR)
+    if chosen:
+        _load_runtime(Path(chosen))  # the bundled library needs its libc++ first, as in the parent
+    import drjit as dr
+    import mitsuba as mi
+
+    mi.set_variant("llvm_ad_spectral")
+    scene = mi.cornell_box()
+    scene["sensor"]["film"].update(width=8, height=8)
+    dr.eval(mi.render(mi.load_dict(scene), spp=4))
+    print(_PROBE_MARK, dr.detail.llvm_version(), flush=True)
+    return 0
+
+
 def install_hint(platform: str | None = None) -> str:
     """What to install, for ``platform`` (``sys.platform`` by default)."""
     platform = platform or sys.platform
@@ -158,3 +230,7 @@ def install_hint(platform: str | None = None) -> str:
         text = "Install LLVM 16 or newer"
     return (text + f", or set {ENV_VAR} to the full path of a libLLVM {MIN_LLVM_MAJOR}+ library; "
             "then restart Blender. An NVIDIA GPU with a CUDA driver renders without LLVM.")
+
+
+if __name__ == "__main__" and sys.argv[1:] == ["--probe"]:
+    sys.exit(_probe_main())

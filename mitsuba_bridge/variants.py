@@ -40,15 +40,20 @@ def choose_variant(requested: str = "auto") -> str:
         backend = backends.get(requested)
         if backend is not None and not dr.has_backend(backend):
             raise VariantError(_missing_backend_message(requested))
-        if backend == dr.JitBackend.LLVM and (problem := llvm_library.llvm_problem()):
+        if backend == dr.JitBackend.LLVM and (problem := _llvm_problem()):
             raise VariantError(problem)
         return requested
     for variant in SPECTRAL_VARIANTS:
         if variant in available and dr.has_backend(backends[variant]):
-            if backends[variant] == dr.JitBackend.LLVM and (problem := llvm_library.llvm_problem()):
+            if backends[variant] == dr.JitBackend.LLVM and (problem := _llvm_problem()):
                 raise VariantError(problem)
             return variant
     raise VariantError(_missing_backend_message("llvm_ad_spectral"))
+
+
+def _llvm_problem() -> str | None:
+    """The version check (instant), then the crash probe in a child process (once per process)."""
+    return llvm_library.llvm_problem() or llvm_library.probe_problem()
 
 
 def _missing_backend_message(variant: str) -> str:

@@ -84,4 +84,5 @@ def test_linux_zip_installs_enables_and_renders_with_its_own_wheels(tmp_path, ll
     assert f"MITSUBA {sandbox}" in log  # rendered with the bundled Mitsuba
     # ... and the bundled libLLVM (karellen-llvm-core 23), whatever the system offers
     assert "LLVM (23, " in log and f"{sandbox}" in log.split("LLVM (23, ")[1], log
+    assert "LLVM probe" not in log  # the crash probe ran in a child with the bundled wheels and rendered
     assert output.is_file() and output.stat().st_size > 100

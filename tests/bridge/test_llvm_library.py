@@ -221,3 +221,44 @@ def test_a_bundled_llvm_that_cannot_load_is_named_in_the_error(tmp_path, blender
     assert result.returncode == 0, result.stdout + result.stderr
     assert "REFUSED Mitsuba's CPU backend needs the LLVM library (libLLVM 16 or newer): the LLVM bundled with " \
            f"the extension ({site.resolve()}/karellen_llvm_core-" in result.stdout, result.stdout + result.stderr
+
+
+PROBE_BYPASSING_THE_VERSION_CHECK = """
+from mitsuba_bridge import llvm_library, variants
+llvm_library.llvm_problem = lambda: None  # as if LLVM 15 had passed the version check
+try:
+    variants.activate('auto')
+except variants.VariantError as error:
+    print('REFUSED', error)
+import mitsuba as mi
+print('VARIANT', mi.variant())
+"""
+
+
+def test_the_probe_catches_a_crashing_llvm_that_passed_the_version_check(tmp_path, llvm15):
+    result = run_python(PROBE_BYPASSING_THE_VERSION_CHECK, tmp_path, llvm15)
+    assert result.returncode == 0, result.stdout + result.stderr  # the child crashed, not this process
+    assert f"REFUSED Mitsuba's CPU backend crashed while compiling a test kernel with LLVM 15.0.6 " \
+           f"(exit status {-signal.SIGABRT}: " in result.stdout, result.stdout + result.stderr
+    assert "LLVM ERROR" in result.stdout and "VARIANT None" in result.stdout
+
+
+@pytest.mark.parametrize("child, refused", [
+    ("import os; os.abort()", True),                        # a crash: refuse
+    ("raise ImportError('no mitsuba in the child')", False),  # a Python error: says nothing about LLVM
+    ("print('LLVM-PROBE-RENDERED')", False),                # rendered
+])
+def test_only_a_crashing_probe_refuses(tmp_path, monkeypatch, child, refused):
+    script = tmp_path / "probe.py"
+    script.write_text(child)
+    monkeypatch.setattr(llvm_library, "_PROBE_SCRIPT", script)
+    monkeypatch.setattr(llvm_library, "_probe_answers", {})
+    problem = llvm_library.probe_problem()
+    assert (problem is not None) == refused, problem
+    if refused:
+        assert problem.startswith("Mitsuba's CPU backend crashed while compiling a test kernel")
+        assert "DRJIT_LIBLLVM_PATH" in problem  # with the install hint
+    monkeypatch.setattr(sys, "executable", str(tmp_path / "no-such-python"))
+    assert llvm_library.probe_problem() == problem  # answered once per process and library
+    monkeypatch.setattr(llvm_library, "_probe_answers", {})
+    assert llvm_library.probe_problem() is None  # a child that cannot start: inconclusive
