@@ -166,6 +166,11 @@ def probe_problem() -> str | None:
 
 
 def _run_probe() -> str | None:
+    if not Path(sys.executable or "").name.lower().startswith("python"):
+        # Some distribution builds of Blender report the Blender binary itself, which would open a window.
+        print(f"Scratch Iridescence: LLVM probe not run (no Python interpreter: {sys.executable!r})",
+              file=sys.stderr)
+        return None
     env = dict(os.environ)
     # The child finds Mitsuba where this process does (Blender adds the extension's site-packages itself).
     env["PYTHONPATH"] = os.pathsep.join(path for path in sys.path if path)

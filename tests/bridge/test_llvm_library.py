@@ -262,3 +262,10 @@ def test_only_a_crashing_probe_refuses(tmp_path, monkeypatch, child, refused):
     assert llvm_library.probe_problem() == problem  # answered once per process and library
     monkeypatch.setattr(llvm_library, "_probe_answers", {})
     assert llvm_library.probe_problem() is None  # a child that cannot start: inconclusive
+    blender = tmp_path / "blender"  # a Blender build that reports itself as sys.executable
+    blender.write_text(f"#!/bin/sh\ntouch {tmp_path / 'blender-started'}\n")
+    blender.chmod(0o755)
+    monkeypatch.setattr(sys, "executable", str(blender))
+    monkeypatch.setattr(llvm_library, "_probe_answers", {})
+    assert llvm_library.probe_problem() is None
+    assert not (tmp_path / "blender-started").exists()  # not started: it would have opened a window
