@@ -269,3 +269,22 @@ def test_only_a_crashing_probe_refuses(tmp_path, monkeypatch, child, refused):
     monkeypatch.setattr(llvm_library, "_probe_answers", {})
     assert llvm_library.probe_problem() is None
     assert not (tmp_path / "blender-started").exists()  # not started: it would have opened a window
+
+
+@needs_llvm_wheel
+def test_the_pip_installed_wheel_is_found_too(tmp_path, system_with_only_llvm15):
+    # `pip install scratch-iridescence[llvm]` puts the data files under the prefix's lib/, not in site-packages.
+    prefix = tmp_path / "prefix"
+    subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", "--disable-pip-version-check", "--no-deps",
+                    "--no-index", "--prefix", str(prefix), str(LLVM_WHEEL)], check=True, timeout=300)
+    site = next(prefix.glob("lib/python*/site-packages"))
+    assert list((prefix / "lib").glob("libLLVM.so.*"))  # beside site-packages, not in it
+    result = run_python(CHECKED, tmp_path, None, PYTHONPATH=str(site), **system_with_only_llvm15)
+    assert "RENDERED llvm_ad_spectral (256, 256, 3)" in result.stdout, result.stdout + result.stderr
+    assert "LLVM (23," in result.stdout
+
+
+def test_the_llvm_extra_pins_the_wheel_the_extension_bundles():
+    extra = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["optional-dependencies"]["llvm"]
+    version = LLVM_WHEEL.name.split("-")[1]
+    assert extra == [f"karellen-llvm-core=={version}; sys_platform == 'linux' and platform_machine == 'x86_64'"]
