@@ -6,7 +6,7 @@ nothing else), else ``libLLVM.so`` on the loader path, else the newest
 ``/usr/lib/<triple>/libLLVM*.so.*`` (Homebrew's on macOS, ``LLVM-C.dll`` on
 Windows).  With LLVM 15 or older the first kernel **aborts the process**
 (``LLVM ERROR: Cannot select ... fminimum``, SIGABRT), which inside Blender loses
-the user's unsaved work; an exception cannot catch it.  Hence two steps:
+the user's unsaved work; an exception cannot catch it.  Hence three steps:
 
 * :func:`configure` runs when :mod:`mitsuba_bridge` is imported, before ``drjit``
   is: where the extension bundles a libLLVM wheel (Linux x64:
