@@ -1,9 +1,10 @@
 # Scratch Iridescence: one-command setup, tests, demo and benchmarks.
 #
 # Every target that runs Python depends on `setup`, which creates .venv once
-# (pinned versions from pyproject.toml) and installs Debian's libllvm19 when no
-# libLLVM >= 16 is present: Dr.Jit 1.5's CPU backend crashes with LLVM 15.
-# A second run finds the stamp file and installs nothing.
+# (pinned versions from pyproject.toml), installs Debian's libllvm19 when no
+# libLLVM >= 16 is present (Dr.Jit 1.5's CPU backend crashes with LLVM 15) and, on
+# Linux x64, downloads the libLLVM wheel that the extension bundles into wheels/.
+# A second run finds the stamp file and the wheel and installs nothing.
 
 SHELL := /bin/bash
 .SHELLFLAGS := -eu -o pipefail -c
@@ -13,7 +14,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 PYTEST := $(PY) -m pytest
 
-.PHONY: setup llvm test test-slow demo paper extension bench clean help
+.PHONY: setup llvm llvm-wheel llvm15-for-tests test test-slow demo paper extension bench clean help
 
 help:
 	@echo "make demo       render the bundled demo scene to out/"
@@ -23,7 +24,7 @@ help:
 	@echo "make bench      run the benchmarks in tests/bench"
 	@echo "make extension  build the extension zips (one per platform, wheels bundled) into dist/"
 
-setup: $(STAMP) llvm
+setup: $(STAMP) llvm llvm-wheel
 
 $(STAMP): pyproject.toml
 	@version=$$($(PYTHON) -c 'import sys; print("%d.%d" % sys.version_info[:2])'); \
@@ -46,11 +47,27 @@ llvm:
 	    $$sudo apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$sudo apt-get install -y -qq libllvm19; \
 	fi
 
+# The libLLVM wheel that the Linux x64 extension zip bundles (blender_manifest.toml names it): the tests
+# install it the way Blender does and render with it while the system offers only LLVM 15.
+llvm-wheel: $(STAMP)
+	@if [ "$$(uname -s)-$$(uname -m)" = "Linux-x86_64" ]; then $(PY) .ci/build_extension.py --download-only karellen_llvm_core; fi
+
+# The LLVM-15 simulation tests (an old libLLVM must be refused, never abort) need a real libLLVM 15.
+# Debian 12 images ship it; elsewhere it is installed when apt can, else those tests skip with the reason.
+llvm15-for-tests:
+	@if [ "$$(uname -s)" = "Linux" ] && ! ls /usr/lib/x86_64-linux-gnu/libLLVM-15.so* >/dev/null 2>&1 \
+	    && command -v apt-get >/dev/null; then \
+	    echo "installing Debian's libllvm15 for the LLVM-15 simulation tests"; \
+	    sudo=""; [ "$$(id -u)" -eq 0 ] || sudo="sudo"; \
+	    { $$sudo apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$sudo apt-get install -y -qq libllvm15; } \
+	    || echo "libllvm15 could not be installed: the LLVM-15 tests will be skipped"; \
+	fi
+
 # pytest exits with 5 when it collected nothing; make treats any non-zero status as failure.
-test: setup
+test: setup llvm15-for-tests
 	$(PYTEST) -m "not slow"
 
-test-slow: setup
+test-slow: setup llvm15-for-tests
 	$(PYTEST) -m slow
 
 # Builds the demo plate in code, saves out/demo.blend and renders it through the

@@ -2,7 +2,8 @@
 
 ``blender_manifest.toml`` is the single source of truth: its ``wheels`` list
 names every wheel file exactly (CPython 3.11 for Blender 4.2-5.0, 3.13 for
-Blender 5.1; Linux x64, Windows x64, macOS arm64).  This script
+Blender 5.1; Linux x64, Windows x64, macOS arm64), plus the py3 wheel of a
+libLLVM for Linux x64 (``karellen-llvm-core``, docs/rendering.md).  This script
 
 1. downloads the listed wheels that are missing from ``wheels/`` with pip
    (``--no-deps --only-binary``, each for its own platform and Python);
@@ -38,12 +39,14 @@ def extension_cli() -> Path:
     raise SystemExit("error: blender_ext.py not found in the bpy wheel")
 
 
-def parse_wheel(filename: str) -> tuple[str, str, str, str]:
-    """(distribution, version, python version 'X.Y', first platform tag) of a wheel file name."""
+def parse_wheel(filename: str) -> tuple[str, str, str | None, str]:
+    """(distribution, version, python version 'X.Y' or None for any Python 3, first platform tag) of a wheel."""
     parts = filename[:-len(".whl")].split("-")
     distribution, version, python_tag, platform_tag = parts[0], parts[1], parts[-3], parts[-1]
+    if python_tag == "py3":  # a native library without Python code (the bundled libLLVM)
+        return distribution, version, None, platform_tag.split(".")[0]
     if not python_tag.startswith("cp") or len(python_tag) < 4:
-        raise ValueError(f"{filename}: expected a CPython-specific wheel")
+        raise ValueError(f"{filename}: expected a CPython-specific or a py3 wheel")
     python = f"{python_tag[2]}.{python_tag[3:]}"
     return distribution, version, python, platform_tag.split(".")[0]
 
@@ -54,7 +57,7 @@ def download_missing(wheels: list[str], folder: Path) -> None:
     groups: dict[tuple[str, str], list[str]] = defaultdict(list)
     for name in missing:
         distribution, version, python, platform = parse_wheel(name)
-        groups[(python, platform)].append(f"{distribution}=={version}")
+        groups[(python or "3", platform)].append(f"{distribution}=={version}")
     folder.mkdir(exist_ok=True)
     for (python, platform), requirements in sorted(groups.items()):
         print(f"downloading {', '.join(requirements)} for CPython {python} on {platform}", flush=True)
@@ -72,10 +75,16 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--output-dir", default=str(ROOT / "dist"))
     parser.add_argument("--no-download", action="store_true", help="fail instead of downloading missing wheels")
+    parser.add_argument("--download-only", metavar="PREFIX",
+                        help="only download the listed wheels whose file name starts with PREFIX, then stop "
+                             "(make setup fetches the bundled libLLVM this way for the tests)")
     args = parser.parse_args(argv)
 
     manifest = tomllib.loads((ROOT / "blender_manifest.toml").read_text())
     wheels = [Path(entry).name for entry in manifest.get("wheels", [])]
+    if args.download_only:
+        download_missing([name for name in wheels if name.startswith(args.download_only)], ROOT / "wheels")
+        return 0
     if not args.no_download:
         download_missing(wheels, ROOT / "wheels")
     cli = extension_cli()

@@ -1,5 +1,12 @@
-"""Which Mitsuba variant renders: spectral always (diffraction colours need wavelengths), CUDA when present."""
+"""Which Mitsuba variant renders: spectral always (diffraction colours need wavelengths), CUDA when present.
+
+The CPU variant is chosen only after :func:`mitsuba_bridge.llvm_library.llvm_problem`
+found a usable libLLVM: with an old one the first compiled kernel aborts the
+whole process (Blender included), so it is refused here, before any kernel.
+"""
 from __future__ import annotations
+
+from . import llvm_library
 
 __all__ = ["SPECTRAL_VARIANTS", "VariantError", "choose_variant", "activate"]
 
@@ -14,8 +21,9 @@ class VariantError(RuntimeError):
 def choose_variant(requested: str = "auto") -> str:
     """The Mitsuba variant to use for ``requested`` (``"auto"`` or a variant name).
 
-    ``"auto"`` takes CUDA when Dr.Jit finds a CUDA device, else LLVM (CPU).
-    Raises :class:`VariantError` with a fix when neither works.
+    ``"auto"`` takes CUDA when Dr.Jit finds a CUDA device, else LLVM (CPU) when
+    its libLLVM is usable.  Raises :class:`VariantError` with a fix when neither
+    works; compiles no kernel.
     """
     import drjit as dr
     import mitsuba as mi
@@ -32,20 +40,27 @@ def choose_variant(requested: str = "auto") -> str:
         backend = backends.get(requested)
         if backend is not None and not dr.has_backend(backend):
             raise VariantError(_missing_backend_message(requested))
+        if backend == dr.JitBackend.LLVM and (problem := _llvm_problem()):
+            raise VariantError(problem)
         return requested
     for variant in SPECTRAL_VARIANTS:
         if variant in available and dr.has_backend(backends[variant]):
+            if backends[variant] == dr.JitBackend.LLVM and (problem := _llvm_problem()):
+                raise VariantError(problem)
             return variant
     raise VariantError(_missing_backend_message("llvm_ad_spectral"))
+
+
+def _llvm_problem() -> str | None:
+    """The version check (instant), then the crash probe in a child process (once per process)."""
+    return llvm_library.llvm_problem() or llvm_library.probe_problem()
 
 
 def _missing_backend_message(variant: str) -> str:
     if variant.startswith("cuda"):
         return (f"Mitsuba variant '{variant}' needs an NVIDIA GPU with a CUDA driver; none was found. "
                 "Choose 'Automatic' or the CPU (LLVM) variant")
-    return ("Mitsuba's CPU backend needs the LLVM library (libLLVM 16 or newer) and found none. "
-            "Install it (Debian/Ubuntu: 'apt install libllvm19'; macOS: 'brew install llvm'; Windows: "
-            "the LLVM installer) or point DRJIT_LIBLLVM_PATH at the library")
+    return llvm_library.llvm_problem() or "Mitsuba's CPU backend is unavailable"
 
 
 def activate(requested: str = "auto") -> str:

@@ -40,6 +40,8 @@ def _fail(engine, message: str) -> None:
 
 def _bridge():
     """The bridge modules that need Mitsuba, or an ImportError naming what is missing."""
+    # The bridge first: importing it points Dr.Jit at a bundled libLLVM, which must precede ``import drjit``.
+    from ... import mitsuba_bridge  # noqa: F401
     import drjit  # noqa: F401  (imported here to report a missing wheel by name)
     import mitsuba  # noqa: F401
 

@@ -1,5 +1,8 @@
 """The built Linux extension zip installs into a sandboxed Blender user folder, enables and renders.
 
+Where a libLLVM 15 exists, the sandbox's system LLVM is that one (LD_LIBRARY_PATH): the render
+must then use the libLLVM the zip bundles.
+
 Slow: builds the zips from the current tree first (as ``make extension`` does; the first
 build downloads about 300 MB of wheels into ``wheels/``).
 """
@@ -45,8 +48,9 @@ scene.scratch_render.samples = 4
 scene.render.image_settings.file_format = "PNG"
 scene.render.filepath = output
 bpy.ops.render.render(write_still=True)
-import mitsuba
+import mitsuba, drjit
 print("MITSUBA", mitsuba.__file__)
+print("LLVM", drjit.detail.llvm_version(), os.environ.get("DRJIT_LIBLLVM_PATH"))
 """
 
 
@@ -60,12 +64,16 @@ def linux_zip(output: Path) -> Path:
 
 @pytest.mark.slow
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="installs the Linux x64 zip")
-def test_linux_zip_installs_enables_and_renders_with_its_own_wheels(tmp_path):
+def test_linux_zip_installs_enables_and_renders_with_its_own_wheels(tmp_path, llvm15_or_none):
     zip_path = linux_zip(tmp_path / "dist")
     sandbox = tmp_path / "blender-user"
     output = tmp_path / "frame.png"
     env = {"BLENDER_USER_RESOURCES": str(sandbox), "PATH": "/usr/bin:/bin", "HOME": str(tmp_path),
            "TMPDIR": str(tmp_path)}
+    if llvm15_or_none is not None:  # a system whose only libLLVM is 15: the bundled one must be used
+        (tmp_path / "system-lib").mkdir()
+        (tmp_path / "system-lib" / "libLLVM.so").symlink_to(llvm15_or_none)
+        env["LD_LIBRARY_PATH"] = str(tmp_path / "system-lib")
     result = subprocess.run([sys.executable, "-c", INSTALL_AND_RENDER, str(zip_path), str(output)],
                             capture_output=True, text=True, env=env, cwd=tmp_path, timeout=600)
     log = result.stdout + result.stderr
@@ -74,4 +82,7 @@ def test_linux_zip_installs_enables_and_renders_with_its_own_wheels(tmp_path):
     assert "ENGINE bl_ext.user_default.scratch_iridescence" in log
     assert all(f"'{name}-" in log for name in ("mitsuba", "drjit", "openexr")), log
     assert f"MITSUBA {sandbox}" in log  # rendered with the bundled Mitsuba
+    # ... and the bundled libLLVM (karellen-llvm-core 23), whatever the system offers
+    assert "LLVM (23, " in log and f"{sandbox}" in log.split("LLVM (23, ")[1], log
+    assert "LLVM probe" not in log  # the crash probe ran in a child with the bundled wheels and rendered
     assert output.is_file() and output.stat().st_size > 100

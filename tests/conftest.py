@@ -1,0 +1,24 @@
+"""Fixtures shared by every test folder: the real libLLVM 15 for the LLVM-15 simulations."""
+from __future__ import annotations
+
+import glob
+
+import pytest
+
+#: Where Debian's ``libllvm15`` (or llvm.org's packages) put libLLVM 15.
+LLVM15_PATTERNS = ("/usr/lib/x86_64-linux-gnu/libLLVM-15.so*", "/usr/lib/llvm-15/lib/libLLVM-15.so*")
+
+
+@pytest.fixture(scope="session")
+def llvm15_or_none() -> str | None:
+    """Path of a real libLLVM 15 on this machine, or None."""
+    return next(iter(sorted(path for pattern in LLVM15_PATTERNS for path in glob.glob(pattern))), None)
+
+
+@pytest.fixture(scope="session")
+def llvm15(llvm15_or_none) -> str:
+    """Path of a real libLLVM 15; skips the test with the reason when there is none."""
+    if llvm15_or_none is None:
+        pytest.skip("no libLLVM 15 on this machine (Debian: 'apt-get install libllvm15'); "
+                    "the LLVM-15 simulation needs the real library")
+    return llvm15_or_none
