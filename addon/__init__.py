@@ -13,13 +13,13 @@ import importlib
 
 # Module names relative to this package, in registration order.
 _MODULES = (
-    "properties",
+    "object_settings",
     "mesh",
-    "generate",
-    "files",
-    "paint",
-    "overlay",
-    "panels",
+    "operators.generate",
+    "operators.files",
+    "tools.paint",
+    "ui.overlay",
+    "ui.panels",
     "render.settings",
     "render.engine",
     "render.panels",

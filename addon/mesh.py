@@ -16,7 +16,7 @@ import bpy
 import numpy as np
 from bpy.app.handlers import persistent
 
-from .surface import Surface, SurfaceError
+from .geometry.surface import Surface, SurfaceError
 
 __all__ = ["MeshError", "MeshArrays", "scratch_uv_layer", "mesh_arrays", "world_surface", "Picker",
            "picker_for", "matrix_key", "geometry_generation", "cached", "peek", "clear_caches", "check_object",

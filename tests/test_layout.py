@@ -65,7 +65,7 @@ def test_top_level_layout_is_as_documented():
     if not tracked:
         pytest.skip("not a git checkout")
     top = {path.split("/")[0] for path in tracked}
-    assert top <= {"addon", "blender_manifest.toml", "mitsuba_bridge", "tests", "docs", "README.md",
+    assert top <= {"addon", "blender_manifest.toml", "mitsuba_bridge", "scenes", "tests", "docs", "README.md",
                    "pyproject.toml", "Makefile", ".ci", ".gitignore", "__init__.py"}, top
     assert len((ROOT / "__init__.py").read_text().strip().splitlines()) == 3
 

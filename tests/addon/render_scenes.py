@@ -89,7 +89,7 @@ def add_light(scene, kind, location=(0, 0, 2), rotation=(0, 0, 0), **data):
 
 def set_world(scene, colour=(0, 0, 0), strength=1.0):
     """A uniform world (the paper scenes' staging helper)."""
-    from scratch_iridescence.addon.scenes import staging
+    from scratch_iridescence.scenes import staging
 
     return staging.constant_world(scene, colour, strength=strength)
 

@@ -1,4 +1,4 @@
-"""The paper's scenes (``addon/scenes/fig*.py``): each builds at a small scale with the requested scratches,
+"""The paper's scenes (``scenes/fig*.py``): each builds at a small scale with the requested scratches,
 through the add-on's operators; tiny renders show the effects the figures are about."""
 import inspect
 
@@ -10,7 +10,7 @@ from render_scenes import render_to, setup_render  # noqa: E402
 from scipy import stats  # noqa: E402
 
 from scratch_iridescence.addon import storage  # noqa: E402
-from scratch_iridescence.addon.scenes import (fig01_table, fig06_cd, fig07_plate, fig09_grating,  # noqa: E402
+from scratch_iridescence.scenes import (fig01_table, fig06_cd, fig07_plate, fig09_grating,  # noqa: E402
                                               fig10_base, fig17_profile, paper)
 from scratch_iridescence.mitsuba_bridge import scratch  # noqa: E402
 
@@ -181,7 +181,7 @@ def test09_coherent_cd_shows_rainbow_orders_that_vanish_incoherently(empty_scene
 def test10_paper_runner_builds_renders_and_writes_the_pages(tmp_path):
     """``make paper`` in miniature: the grated plate at 5 % resolution, built and rendered by fresh worker
     processes; the pictures, the statistics and both pages read back."""
-    from scratch_iridescence.addon.scenes import pages
+    from scratch_iridescence.scenes import pages
     from scratch_iridescence.mitsuba_bridge.exr import read_exr
 
     output, docs = tmp_path / "out", tmp_path / "docs"

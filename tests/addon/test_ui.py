@@ -10,12 +10,12 @@ import pytest
 
 bpy = pytest.importorskip("bpy")
 from conftest import stroke  # noqa: E402
-from scratch_iridescence.addon import overlay, panels  # noqa: E402
-from scratch_iridescence.addon.files import SCRATCH_OT_export_file, SCRATCH_OT_import_file  # noqa: E402
-from scratch_iridescence.addon.generate import SCRATCH_OT_generate  # noqa: E402
-from scratch_iridescence.addon.paint import (SCRATCH_OT_erase_stroke, SCRATCH_OT_paint_stroke,  # noqa: E402
+from scratch_iridescence.addon.ui import overlay, panels  # noqa: E402
+from scratch_iridescence.addon.operators.files import SCRATCH_OT_export_file, SCRATCH_OT_import_file  # noqa: E402
+from scratch_iridescence.addon.operators.generate import SCRATCH_OT_generate  # noqa: E402
+from scratch_iridescence.addon.tools.paint import (SCRATCH_OT_erase_stroke, SCRATCH_OT_paint_stroke,  # noqa: E402
                                              SCRATCH_PT_brush_scratches, SCRATCH_TOOL_brush, SCRATCH_TOOL_eraser)
-from scratch_iridescence.addon.stroke import StrokeOperator  # noqa: E402
+from scratch_iridescence.addon.tools.stroke import StrokeOperator  # noqa: E402
 
 
 class Layout:

@@ -7,8 +7,8 @@ the sun's mirror direction, where the scratches light up in diffraction colours.
 Saves ``demo.blend``, renders it with MITSUBA_SCRATCH (``bpy.ops.render.render``)
 and writes ``demo.exr`` (linear) and ``demo.png`` (display-referred: Standard view, exposure −6.5).
 
-    .venv/bin/python -m scratch_iridescence.addon.scenes.demo --output out     # what `make demo` runs
-    .venv/bin/python -m scratch_iridescence.addon.scenes.demo --output /tmp/d --resolution 64 40 --samples 4
+    .venv/bin/python -m scratch_iridescence.scenes.demo --output out     # what `make demo` runs
+    .venv/bin/python -m scratch_iridescence.scenes.demo --output /tmp/d --resolution 64 40 --samples 4
 """
 from __future__ import annotations
 
@@ -28,8 +28,8 @@ def build_scene(scene, *, scratch_count: int = 3000, seed: int = 7, resolution=(
     import bpy
     from mathutils import Vector
 
-    from ...mitsuba_bridge import scratch
-    from .. import storage
+    from ..mitsuba_bridge import scratch
+    from ..addon import storage
 
     # ---- the plate: a 10 cm square with UVs over [0, 1]², scratched ----
     bpy.ops.mesh.primitive_plane_add(size=PLATE_SIZE_M, location=(0, 0, 0.002))
@@ -106,7 +106,7 @@ def main(argv=None) -> int:
     started = time.perf_counter()
     import bpy
 
-    from ... import register, unregister  # the extension package
+    from .. import register, unregister  # the extension package
 
     output = Path(args.output).resolve()
     output.mkdir(parents=True, exist_ok=True)

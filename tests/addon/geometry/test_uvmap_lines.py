@@ -3,10 +3,10 @@ import numpy as np
 import pytest
 
 from meshes import grid, ring, torus
-from scratch_iridescence.addon.lines import COLOUR_MAP, line_colours, overlay_arrays, scratch_lines
-from scratch_iridescence.addon.scatter import Looks, ScatterSpec, scatter
-from scratch_iridescence.addon.surface import Surface
-from scratch_iridescence.addon.uvmap import UVLocator
+from scratch_iridescence.addon.geometry.lines import COLOUR_MAP, line_colours, overlay_arrays, scratch_lines
+from scratch_iridescence.addon.geometry.scatter import Looks, ScatterSpec, scatter
+from scratch_iridescence.addon.geometry.surface import Surface
+from scratch_iridescence.addon.geometry.uvmap import UVLocator
 from scratch_iridescence.mitsuba_bridge.scratch import ScratchSet, Uniform, subdivide
 
 

@@ -4,10 +4,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from meshes import grid
-from scratch_iridescence.addon.scatter import Looks, ScatterSpec, scatter
-from scratch_iridescence.addon.surface import Surface
-from scratch_iridescence.addon.trace import BOUNDARY, trace_paths
-from scratch_iridescence.addon.uvmap import UVLocator
+from scratch_iridescence.addon.geometry.scatter import Looks, ScatterSpec, scatter
+from scratch_iridescence.addon.geometry.surface import Surface
+from scratch_iridescence.addon.geometry.trace import BOUNDARY, trace_paths
+from scratch_iridescence.addon.geometry.uvmap import UVLocator
 from scratch_iridescence.mitsuba_bridge.scratch import Constant
 
 

@@ -3,8 +3,8 @@ import numpy as np
 import pytest
 
 from meshes import grid, ring, torus
-from scratch_iridescence.addon.surface import Surface
-from scratch_iridescence.addon.trace import (BOUNDARY, EDGE, END, SEAM_IN, SEAM_OUT, START, TURN, assemble,
+from scratch_iridescence.addon.geometry.surface import Surface
+from scratch_iridescence.addon.geometry.trace import (BOUNDARY, EDGE, END, SEAM_IN, SEAM_OUT, START, TURN, assemble,
                                              trace_paths)
 
 

@@ -13,13 +13,13 @@ import bpy
 from bpy.props import StringProperty
 from bpy_extras.io_utils import ExportHelper, ImportHelper
 
-from ..mitsuba_bridge import scratch
-from ..mitsuba_bridge.scratch import ScratchSet
-from . import storage
+from ...mitsuba_bridge import scratch
+from ...mitsuba_bridge.scratch import ScratchSet
+from .. import storage
 from .editing import USER_ERRORS, ObjectModeOperator, combine, fail, plural, write
-from .mesh import MeshError, check_object, mesh_arrays
-from .settings import mode_property
-from .uvmap import UVLocator
+from ..mesh import MeshError, check_object, mesh_arrays
+from .properties import mode_property
+from ..geometry.uvmap import UVLocator
 
 __all__ = ["SCRATCH_OT_clear", "SCRATCH_OT_import_file", "SCRATCH_OT_export_file"]
 

@@ -4,7 +4,7 @@ import pytest
 from scipy import stats
 
 from meshes import grid, ring, torus, unequal_quads
-from scratch_iridescence.addon.surface import Surface, SurfaceError
+from scratch_iridescence.addon.geometry.surface import Surface, SurfaceError
 
 
 def test01_neighbours_are_mutual():

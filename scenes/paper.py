@@ -15,8 +15,8 @@ Afterwards the numerical validation (:mod:`...mitsuba_bridge.validation`)
 draws its figure, and :mod:`.pages` writes ``docs/gallery.md``,
 ``docs/benchmarks.md`` and the small PNGs in ``docs/gallery/``.
 
-    .venv/bin/python -m scratch_iridescence.addon.scenes.paper                 # what `make paper` runs
-    .venv/bin/python -m scratch_iridescence.addon.scenes.paper --only fig06_cd --scale 0.25 --no-docs
+    .venv/bin/python -m scratch_iridescence.scenes.paper                 # what `make paper` runs
+    .venv/bin/python -m scratch_iridescence.scenes.paper --only fig06_cd --scale 0.25 --no-docs
 """
 from __future__ import annotations
 
@@ -35,7 +35,7 @@ __all__ = ["FIGURE_MODULES", "figures", "main"]
 #: The figure modules, in the gallery's order.
 FIGURE_MODULES = ("fig07_plate", "fig06_cd", "fig09_grating", "fig10_base", "fig17_profile", "fig01_table")
 
-_PACKAGE = __package__  # scratch_iridescence.addon.scenes
+_PACKAGE = __package__  # scratch_iridescence.scenes
 
 
 def figures(only=None):
@@ -62,7 +62,7 @@ def _peak_mb() -> float:
 def _start_blender():
     import bpy
 
-    from ... import register  # the extension package
+    from .. import register  # the extension package
 
     register()
     return bpy
@@ -87,8 +87,8 @@ def _scratch_statistics(bpy) -> dict:
     """Scratch count, segments and load time of the scene's scratched objects (after the render)."""
     import mitsuba as mi
 
-    from ...mitsuba_bridge import bsdf, scratch
-    from .. import storage
+    from ..mitsuba_bridge import bsdf, scratch
+    from ..addon import storage
 
     count = segments = 0
     load_s = 0.0
@@ -216,7 +216,7 @@ def main(argv=None) -> int:
     records = [] if args.pages_only else run_all(output, args.only, args.scale, args.samples_scale)
     validation = None
     if not (args.no_validation or args.pages_only):
-        from ...mitsuba_bridge import validation as numerics
+        from ..mitsuba_bridge import validation as numerics
 
         print("Numerical validation (supplement Fig. 15)", flush=True)
         validation = numerics.run(output / "validation")

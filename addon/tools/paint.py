@@ -10,19 +10,19 @@ import bpy
 import numpy as np
 from bpy.props import EnumProperty, FloatProperty
 
-from ..mitsuba_bridge.scratch import ScratchSet
-from . import storage
-from .brush import pen_scratches, spray_centres
-from .editing import USER_ERRORS, combine, fail, plural, unit_scale, warn_relaxed_arcs, write
-from .erase import cut_scratches, touched_scratches
-from .lines import scratch_lines
-from .mesh import MeshError, cached, matrix_key, picker_for
-from .scatter import estimate_bytes, scratches_from_centres
-from .settings import (LengthProperties, LooksProperties, StrokeProperties, draw_lengths, draw_looks,
+from ...mitsuba_bridge.scratch import ScratchSet
+from .. import storage
+from ..geometry.brush import pen_scratches, spray_centres
+from ..operators.editing import USER_ERRORS, combine, fail, plural, unit_scale, warn_relaxed_arcs, write
+from ..geometry.erase import cut_scratches, touched_scratches
+from ..geometry.lines import scratch_lines
+from ..mesh import MeshError, cached, matrix_key, picker_for
+from ..geometry.scatter import estimate_bytes, scratches_from_centres
+from ..operators.properties import (LengthProperties, LooksProperties, StrokeProperties, draw_lengths, draw_looks,
                        seed_property)
 from .stroke import SNAP_FRACTION, StrokeOperator, stroke_runs
-from .units import check_memory
-from .uvmap import UVLocator
+from ..geometry.units import check_memory
+from ..geometry.uvmap import UVLocator
 
 __all__ = ["SCRATCH_OT_paint_stroke", "SCRATCH_OT_erase_stroke", "SCRATCH_TOOL_brush", "SCRATCH_TOOL_eraser"]
 

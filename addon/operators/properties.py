@@ -18,9 +18,9 @@ import math
 import bpy
 from bpy.props import CollectionProperty, EnumProperty, FloatProperty, IntProperty
 
-from ..mitsuba_bridge.scratch import Gaussian, Profile, Uniform
-from .scatter import Looks
-from .units import NM, format_length
+from ...mitsuba_bridge.scratch import Gaussian, Profile, Uniform
+from ..geometry.scatter import Looks
+from ..geometry.units import NM, format_length
 
 __all__ = ["LooksProperties", "LengthProperties", "StrokeProperties", "NM_UNIT", "seed_property",
            "mode_property", "draw_looks", "draw_lengths"]

@@ -4,11 +4,11 @@ import pytest
 from scipy import stats
 
 from meshes import grid, ring, torus, unequal_quads
-from scratch_iridescence.addon.brush import pen_scratches, spray_centres
-from scratch_iridescence.addon.scatter import (MAX_SEGMENTS, SAGITTA_FRACTION, Looks, ScatterSpec, estimate_bytes,
+from scratch_iridescence.addon.geometry.brush import pen_scratches, spray_centres
+from scratch_iridescence.addon.geometry.scatter import (MAX_SEGMENTS, SAGITTA_FRACTION, Looks, ScatterSpec, estimate_bytes,
                                                scatter, scratches_from_centres)
-from scratch_iridescence.addon.surface import Surface
-from scratch_iridescence.addon.uvmap import UVLocator
+from scratch_iridescence.addon.geometry.surface import Surface
+from scratch_iridescence.addon.geometry.uvmap import UVLocator
 from scratch_iridescence.mitsuba_bridge.scratch import Constant, Gaussian, Profile, Uniform
 
 P_MIN = 1e-3  # fixed seeds: these p-values are deterministic; the threshold only guards against bad luck

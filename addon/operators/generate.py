@@ -5,13 +5,13 @@ import bpy
 import numpy as np
 from bpy.props import EnumProperty, FloatProperty, IntProperty
 
-from . import storage
+from .. import storage
 from .editing import (USER_ERRORS, ObjectModeOperator, combine, fail, plural, unit_scale, warn_relaxed_arcs,
                       write)
-from .mesh import check_object, world_surface
-from .scatter import ScatterSpec, estimate_bytes, expected_vertices, scatter
-from .settings import LengthProperties, LooksProperties, draw_lengths, draw_looks, mode_property, seed_property
-from .units import check_memory
+from ..mesh import check_object, world_surface
+from ..geometry.scatter import ScatterSpec, estimate_bytes, expected_vertices, scatter
+from .properties import LengthProperties, LooksProperties, draw_lengths, draw_looks, mode_property, seed_property
+from ..geometry.units import check_memory
 
 __all__ = ["SCRATCH_OT_generate"]
 

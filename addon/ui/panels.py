@@ -3,11 +3,11 @@ from __future__ import annotations
 
 import bpy
 
-from . import storage
-from .files import SCRATCH_OT_clear, SCRATCH_OT_export_file, SCRATCH_OT_import_file
-from .generate import SCRATCH_OT_generate
-from .mesh import peek, scratch_uv_layer
-from .units import format_length
+from .. import storage
+from ..operators.files import SCRATCH_OT_clear, SCRATCH_OT_export_file, SCRATCH_OT_import_file
+from ..operators.generate import SCRATCH_OT_generate
+from ..mesh import peek, scratch_uv_layer
+from ..geometry.units import format_length
 
 __all__ = ["SCRATCH_PT_scratches", "SCRATCH_PT_scratch_render", "SCRATCH_PT_scratch_overlay",
            "SCRATCH_MT_object"]

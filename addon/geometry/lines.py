@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..mitsuba_bridge.scratch import ScratchSet, subdivide
+from ...mitsuba_bridge.scratch import ScratchSet, subdivide
 from .uvmap import UVLocator
 
 __all__ = ["Lines", "scratch_lines", "line_colours", "COLOUR_MAP", "overlay_arrays"]

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..mitsuba_bridge.scratch import ScratchSet
+from ...mitsuba_bridge.scratch import ScratchSet
 from .scatter import piece_seeds
 
 __all__ = ["densify", "touched_scratches", "near_stroke", "cut_scratches", "stroke_segments"]

@@ -16,11 +16,11 @@ from dataclasses import dataclass
 import bpy
 import numpy as np
 
-from . import storage
-from .editing import USER_ERRORS
-from .lines import overlay_arrays, scratch_lines
-from .mesh import cached, mesh_arrays
-from .uvmap import UVLocator
+from .. import storage
+from ..operators.editing import USER_ERRORS
+from ..geometry.lines import overlay_arrays, scratch_lines
+from ..mesh import cached, mesh_arrays
+from ..geometry.uvmap import UVLocator
 
 __all__ = ["OverlayData", "overlay_data", "register", "unregister"]
 

@@ -19,8 +19,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..mitsuba_bridge.scratch import Distribution, Gaussian, Profile, ScratchSet, Uniform, sample_parameters
-from ..mitsuba_bridge.scratch.noise import hash_uint32
+from ...mitsuba_bridge.scratch import Distribution, Gaussian, Profile, ScratchSet, Uniform, sample_parameters
+from ...mitsuba_bridge.scratch.noise import hash_uint32
 from .surface import Surface
 from .trace import SEAM_IN, SEAM_OUT, START, Pieces, assemble, trace_paths
 

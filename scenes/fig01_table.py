@@ -111,7 +111,7 @@ def build_scene(scene, *, resolution=(960, 600), samples: int = 384, scale: floa
 
     from . import staging
 
-    from .. import storage
+    from ..addon import storage
 
     top = staging.metal_plate("Table top", TABLE_M, metal="Al", height_m=0.0)
     for index, (kind, points, settings) in enumerate(painted_strokes(np.random.default_rng(seed))):

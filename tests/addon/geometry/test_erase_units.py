@@ -6,8 +6,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from scratch_iridescence.addon.erase import cut_scratches, densify, near_stroke, touched_scratches
-from scratch_iridescence.addon.units import MemoryLimitError, check_memory, format_length
+from scratch_iridescence.addon.geometry.erase import cut_scratches, densify, near_stroke, touched_scratches
+from scratch_iridescence.addon.geometry.units import MemoryLimitError, check_memory, format_length
 
 
 def brute_force(a, b, scratch, stroke, radius, count):
@@ -85,7 +85,7 @@ class Block:
 sys.meta_path.insert(0, Block())
 import importlib
 for name in ('surface', 'trace', 'scatter', 'brush', 'uvmap', 'lines', 'erase', 'units'):
-    importlib.import_module('scratch_iridescence.addon.' + name)
+    importlib.import_module('scratch_iridescence.addon.geometry.' + name)
 print('ok')
 """
     root = Path(__file__).resolve().parents[2]

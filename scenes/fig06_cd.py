@@ -64,7 +64,7 @@ FIGURE = Figure(
 
 def cd_tracks(radii_m=TRACKS_M, pitch_m: float = PITCH_M, chords: int = CHORDS_PER_TRACK):
     """The CD's tracks as a ScratchSet in the disc's UV map (closed polygons around (0.5, 0.5))."""
-    from ...mitsuba_bridge.scratch import ScratchSet
+    from ..mitsuba_bridge.scratch import ScratchSet
 
     count = int(round((radii_m[1] - radii_m[0]) / pitch_m))
     radii = (radii_m[0] + pitch_m * np.arange(count)) / (2 * DISC_RADIUS_M)  # UV units
@@ -91,7 +91,7 @@ def build_scene(scene, *, coherent: bool = True, resolution=(720, 540), samples:
 
     import bpy
 
-    from ...mitsuba_bridge import scratch
+    from ..mitsuba_bridge import scratch
     from . import staging
 
     metal = staging.material("CD aluminium", (0.91, 0.92, 0.92), roughness=0.05, metallic=1.0)

@@ -95,7 +95,7 @@ def _figure_section(module, figure, records: dict) -> list[str]:
     lines = [f"## {figure.label}: {figure.title}", "",
              f"**The paper's figure.** {figure.paper}", "",
              f"**Scratches.** {figure.scratches}.", "",
-             f"**Scene** (`addon/scenes/{key}.py`). {figure.design}", ""]
+             f"**Scene** (`scenes/{key}.py`). {figure.design}", ""]
     lines.append("| " + " | ".join(render.name for render, _ in done) + " |")
     lines.append("|" + "---|" * len(done))
     lines.append("| " + " | ".join(f"![{figure.label} {render.name}]({GALLERY_DIR}/{key}-{render.name}.png)"
@@ -175,7 +175,7 @@ def _gallery(figures, records: dict, validation: dict | None) -> str:
     lines = ["# Gallery: the paper's scenes, reproduced", "",
              "Werner, Velinov, Jakob, Hullin: *Scratch iridescence: Wave-optical rendering of diffractive "
              "surface structure* (SIGGRAPH Asia 2017). Every scene below is built in code by a module of "
-             "`addon/scenes/` with the add-on's own operators (Generate, the Pen and Spray brushes replayed "
+             "`scenes/` with the add-on's own operators (Generate, the Pen and Spray brushes replayed "
              "along strokes, Import) and the supplement's scratch parameters, then rendered through the Mitsuba "
              "Scratch engine. `make paper` rebuilds everything on this page and on "
              "[benchmarks.md](benchmarks.md).", "",
@@ -204,7 +204,7 @@ def _gallery(figures, records: dict, validation: dict | None) -> str:
     lines += ["## Reproducing", "",
               "```", "make paper                      # every scene, the validation, docs/gallery.md and "
               "docs/benchmarks.md",
-              ".venv/bin/python -m scratch_iridescence.addon.scenes.paper --only fig06_cd --scale 0.5 --no-docs",
+              ".venv/bin/python -m scratch_iridescence.scenes.paper --only fig06_cd --scale 0.5 --no-docs",
               "```", "",
               "Each picture is built in one process (saved as `out/paper/<picture>.blend`, which opens in "
               "Blender with the scratches, lights and camera) and rendered in a fresh one, as "

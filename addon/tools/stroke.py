@@ -20,8 +20,8 @@ import time
 import bpy
 import numpy as np
 
-from .editing import USER_ERRORS, ObjectModeOperator, fail
-from .mesh import Picker, check_object, picker_for
+from ..operators.editing import USER_ERRORS, ObjectModeOperator, fail
+from ..mesh import Picker, check_object, picker_for
 
 __all__ = ["StrokeOperator", "StrokeDrawer", "stroke_runs", "NAVIGATION_EVENTS"]
 

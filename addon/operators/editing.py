@@ -6,11 +6,11 @@ untouched.  Errors the user can act on become one ``ERROR`` report.
 """
 from __future__ import annotations
 
-from ..mitsuba_bridge.scratch import ScratchFormatError, ScratchSet
-from . import storage
-from .mesh import MeshError
-from .surface import SurfaceError
-from .units import MemoryLimitError
+from ...mitsuba_bridge.scratch import ScratchFormatError, ScratchSet
+from .. import storage
+from ..mesh import MeshError
+from ..geometry.surface import SurfaceError
+from ..geometry.units import MemoryLimitError
 
 __all__ = ["USER_ERRORS", "ObjectModeOperator", "combine", "write", "unit_scale", "plural", "fail",
            "warn_relaxed_arcs"]
@@ -66,7 +66,7 @@ def fail(operator, error) -> set:
 def warn_relaxed_arcs(operator, placed) -> None:
     """Say so when some arcs were too long or too bent to keep their sagitta below the limit."""
     if placed.relaxed_arcs:
-        from .scatter import MAX_SEGMENTS, SAGITTA_FRACTION
+        from ..geometry.scatter import MAX_SEGMENTS, SAGITTA_FRACTION
 
         operator.report({"WARNING"}, f"{plural(placed.relaxed_arcs, 'arc')} would need more than "
                                      f"{MAX_SEGMENTS} straight segments to keep the sagitta below "
