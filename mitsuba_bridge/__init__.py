@@ -2,8 +2,18 @@
 
 Importing this package has no side effects and never imports ``bpy``; Mitsuba is
 imported only by the functions that need it.
+
+Its one import name is ``scratch_iridescence.mitsuba_bridge`` (inside Blender:
+``bl_ext.<repository>.scratch_iridescence.mitsuba_bridge``, reached relatively by
+the add-on).  Imported as a top-level ``mitsuba_bridge`` (a Python started in the
+repository root puts it on the path) it would be a second copy of every class,
+whose scene objects the first copy rejects, so that name is refused.
 """
 from __future__ import annotations
+
+if "." not in __name__:
+    raise ImportError(f"import the bridge as 'scratch_iridescence.mitsuba_bridge', not '{__name__}' "
+                      "(one name, one copy of every class; docs/architecture.md)")
 
 __version__ = "0.1.0"
 

@@ -1,4 +1,4 @@
-"""Command line: ``python -m mitsuba_bridge <command> ...``.
+"""Command line: ``python -m scratch_iridescence.mitsuba_bridge <command> ...``.
 
 Commands
 --------
@@ -99,8 +99,9 @@ def _validate(args) -> int:
 
 
 def main(argv=None) -> int:
-    """Entry point of ``python -m mitsuba_bridge``."""
-    parser = argparse.ArgumentParser(prog="python -m mitsuba_bridge", description=__doc__.split("\n")[0])
+    """Entry point of ``python -m scratch_iridescence.mitsuba_bridge``."""
+    parser = argparse.ArgumentParser(prog="python -m scratch_iridescence.mitsuba_bridge",
+                                     description=__doc__.split("\n")[0])
     commands = parser.add_subparsers(dest="command", required=True)
 
     info = commands.add_parser("info", help="summarise and validate scratch files")

@@ -120,7 +120,7 @@ def _validation_section(validation: dict) -> list[str]:
              "height maps of one scratch and of ten random scratches (Fig. 16), at 9, 36 and 144 MP: the "
              "discretisation's ghosting fades as the height map refines, while the parallelogram-shaped "
              "features of scratch–scratch crossings are not reproduced by the model (Fig. 15).", "",
-             "Here (`python -m mitsuba_bridge validate OUT`, `mitsuba_bridge/validation.py`): the BRDF of one "
+             "Here (`python -m scratch_iridescence.mitsuba_bridge validate OUT`, `mitsuba_bridge/validation.py`): the BRDF of one "
              f"coherence area (σ = {validation['sigma_um']:g} µm, δ_c = 30 µm, perfect mirror base) at normal "
              "incidence over the whole plane of outgoing direction cosines "
              f"({validation['plane_samples']}² directions), at 650, 550 and 450 nm. Brute force: the height "

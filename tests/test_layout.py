@@ -20,8 +20,8 @@ class Block:
         if name.split('.')[0] in ('bpy', 'mathutils', 'gpu', 'bmesh'):
             raise ImportError('blocked: ' + name)
 sys.meta_path.insert(0, Block())
-import mitsuba_bridge
-for info in pkgutil.walk_packages(mitsuba_bridge.__path__, 'mitsuba_bridge.'):
+from scratch_iridescence import mitsuba_bridge
+for info in pkgutil.walk_packages(mitsuba_bridge.__path__, 'scratch_iridescence.mitsuba_bridge.'):
     importlib.import_module(info.name)
 assert not any(m.split('.')[0] == 'bpy' for m in sys.modules)
 print('ok')
@@ -32,9 +32,34 @@ print('ok')
 
 
 def test_importing_mitsuba_bridge_has_no_side_effects():
-    code = "import sys, mitsuba_bridge; print('mitsuba' in sys.modules, 'drjit' in sys.modules)"
+    code = "import sys, scratch_iridescence.mitsuba_bridge; print('mitsuba' in sys.modules, 'drjit' in sys.modules)"
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT)
     assert result.stdout.split() == ["False", "False"], result.stderr
+
+
+def test_the_bridge_has_one_import_name_and_one_plugin_class():
+    # From the repository root, where a bare 'mitsuba_bridge' would be found on the path: refused,
+    # so no second copy of ScratchSet, SceneDescription or the BSDF class can exist.
+    code = """
+import sys
+try:
+    import mitsuba_bridge
+except ImportError as error:
+    print('refused:', error)
+import mitsuba as mi
+from scratch_iridescence.mitsuba_bridge import variants
+from scratch_iridescence.mitsuba_bridge.bsdf import PLUGIN_NAME, plugin
+variants.activate('llvm_ad_spectral')
+variants.activate('llvm_ad_spectral')
+bsdf = mi.load_dict({'type': PLUGIN_NAME})
+print('class:', type(bsdf) is plugin.plugin_class())
+print('copies:', sorted(m for m in sys.modules if m.split('.')[0] == 'mitsuba_bridge'))
+"""
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT)
+    assert result.returncode == 0, result.stderr
+    lines = result.stdout.splitlines()
+    assert lines[0].startswith("refused: import the bridge as 'scratch_iridescence.mitsuba_bridge'"), lines
+    assert lines[1:] == ["class: True", "copies: []"], lines
 
 
 def _python_files(folder):
@@ -105,7 +130,7 @@ print(scratch.FORMAT)
 
 def test_command_line_generate_and_info(tmp_path):
     out = tmp_path / "plate.npz"
-    run = lambda *args: subprocess.run([sys.executable, "-m", "mitsuba_bridge", *args],
+    run = lambda *args: subprocess.run([sys.executable, "-m", "scratch_iridescence.mitsuba_bridge", *args],
                                        capture_output=True, text=True, cwd=ROOT)
     made = run("generate", str(out), "--count", "50", "--depth", "G[250, 80]", "--width", "U[1, 6]")
     assert made.returncode == 0, made.stderr

@@ -1,9 +1,4 @@
-"""Headless Blender fixtures: the add-on registered once, a fresh empty file per test.
-
-Add-on tests import the bridge as ``scratch_iridescence.mitsuba_bridge``, the
-add-on's own copy: the top-level ``mitsuba_bridge`` is the same code loaded as a
-different module, so its ``ScratchSet`` is a different class.
-"""
+"""Headless Blender fixtures: the add-on registered once, a fresh empty file per test."""
 import pytest
 
 bpy = pytest.importorskip("bpy")

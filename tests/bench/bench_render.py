@@ -39,9 +39,9 @@ def main():
     import mitsuba as mi
 
     mi.set_variant("llvm_ad_spectral")
-    import mitsuba_bridge
-    from mitsuba_bridge import bsdf as scratch_bsdf
-    from mitsuba_bridge import scratch
+    from scratch_iridescence import mitsuba_bridge
+    from scratch_iridescence.mitsuba_bridge import bsdf as scratch_bsdf
+    from scratch_iridescence.mitsuba_bridge import scratch
 
     mitsuba_bridge.register_plugins()
     start = time.perf_counter()

@@ -9,10 +9,10 @@ import pytest
 from scipy import integrate
 from scipy.special import wofz
 
-from mitsuba_bridge.bsdf import fresnel, profiles
-from mitsuba_bridge.bsdf.complexmath import Cx
-from mitsuba_bridge.bsdf.faddeeva import DEFAULT_TERMS, faddeeva, weideman_coefficients
-from mitsuba_bridge.bsdf.window import window_integral
+from scratch_iridescence.mitsuba_bridge.bsdf import fresnel, profiles
+from scratch_iridescence.mitsuba_bridge.bsdf.complexmath import Cx
+from scratch_iridescence.mitsuba_bridge.bsdf.faddeeva import DEFAULT_TERMS, faddeeva, weideman_coefficients
+from scratch_iridescence.mitsuba_bridge.bsdf.window import window_integral
 
 # MODEL.md §3.2 prints these (N = 16, Horner order).
 MODEL_COEFFICIENTS = [

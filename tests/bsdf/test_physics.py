@@ -6,10 +6,10 @@ import mitsuba as mi
 import numpy as np
 import pytest
 
-from mitsuba_bridge.bsdf import reference as ref
+from scratch_iridescence.mitsuba_bridge.bsdf import reference as ref
 import shading
-from mitsuba_bridge import bsdf as scratch_bsdf
-from mitsuba_bridge.scratch import Profile, ScratchSet
+from scratch_iridescence.mitsuba_bridge import bsdf as scratch_bsdf
+from scratch_iridescence.mitsuba_bridge.scratch import Profile, ScratchSet
 
 CD_PITCH, CD_WIDTH, CD_DEPTH = 1.6, 1.0, 0.12  # µm (Stam 1999, the supplement's CD)
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mitsuba_bridge.bsdf import reference as ref
+from scratch_iridescence.mitsuba_bridge.bsdf import reference as ref
 import shading
 
 SIGMA_UM = 2.0  # δ_c = 12 µm keeps the rasters small; W/σ up to 1 is the demanding regime

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from mitsuba_bridge.scratch import (GRADIENTS, ScratchSet, noise_offset, simplex_noise,
+from scratch_iridescence.mitsuba_bridge.scratch import (GRADIENTS, ScratchSet, noise_offset, simplex_noise,
                                     variation_factor, width_depth_at)
 
 
