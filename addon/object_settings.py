@@ -1,10 +1,12 @@
-"""Settings stored on objects: ``Object.scratch`` (one PointerProperty per ID type).
+"""Settings stored on objects: ``Object.scratch_iridescence`` (one PointerProperty per ID type).
 
 The scratches themselves are not here but in :mod:`storage` (bulk bytes); this
 group holds what a user edits in panels: how the scratched surface renders and
-how the overlay shows it.  Lengths are Blender lengths (metres when the scene's
-unit scale is 1); code converting to the physical metres of the scratch file
-and the BSDF multiplies by ``scene.unit_settings.scale_length``.
+how the overlay shows it.  The coherence diameter is a physical size in
+micrometres, like the scratch widths, independent of the scene's unit scale;
+the render path converts it to metres once (``render.gather``).  Files saved
+before the ``scratch_iridescence`` name (``Object.scratch``, a diameter in scene
+units) are upgraded on load by :mod:`versioning`.
 """
 from __future__ import annotations
 
@@ -12,6 +14,8 @@ import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, FloatVectorProperty
 
 from ..mitsuba_bridge.bsdf.parameters import BASE_MATERIALS, DEFAULT_COHERENCE_DIAMETER_M
+
+M_TO_UM = 1e6
 
 __all__ = ["SCRATCH_PG_object"]
 
@@ -26,12 +30,13 @@ class SCRATCH_PG_object(bpy.types.PropertyGroup):
         items=[(code, label, description) for code, label, description in BASE_MATERIALS],
         default="Al",
     )
-    coherence_diameter: FloatProperty(
-        name="Coherence Diameter",
-        description="Diameter of the area over which the light is coherent; direct sunlight is "
-                    "about 30-100 µm. Larger values give sharper diffraction lines and cost more",
-        subtype="DISTANCE", unit="LENGTH", default=DEFAULT_COHERENCE_DIAMETER_M,
-        min=1e-6, soft_min=5e-6, soft_max=200e-6, precision=1, step=0.1,
+    coherence_diameter_um: FloatProperty(
+        name="Coherence Diameter (µm)",
+        description="Diameter of the area over which the light is coherent, in micrometres (a physical "
+                    "size, whatever the scene's unit scale); direct sunlight is about 30-100 µm. Larger "
+                    "values give sharper diffraction lines and cost more",
+        default=DEFAULT_COHERENCE_DIAMETER_M * M_TO_UM,
+        min=1.0, soft_min=5.0, soft_max=200.0, precision=1, step=100,
     )
     coherent: BoolProperty(
         name="Coherent",
@@ -59,9 +64,9 @@ class SCRATCH_PG_object(bpy.types.PropertyGroup):
 
 def register():
     bpy.utils.register_class(SCRATCH_PG_object)
-    bpy.types.Object.scratch = bpy.props.PointerProperty(type=SCRATCH_PG_object)
+    bpy.types.Object.scratch_iridescence = bpy.props.PointerProperty(type=SCRATCH_PG_object)
 
 
 def unregister():
-    del bpy.types.Object.scratch
+    del bpy.types.Object.scratch_iridescence
     bpy.utils.unregister_class(SCRATCH_PG_object)

@@ -46,7 +46,7 @@ def build_scene(scene, *, scratch_count: int = 3000, seed: int = 7, resolution=(
             scratch_count, seed=seed, width=scratch.Gaussian(4e-6, 1.3e-6), depth=scratch.Gaussian(250e-9, 80e-9),
             depth_variation=(1.1, 0.04), length=(0.2, 0.6), region=((0.02, 0.02), (0.98, 0.98)))
         storage.write_scratches(plate, scratches)
-        plate.scratch.base_material = "Al"
+        plate.scratch_iridescence.base_material = "Al"
 
     # ---- a dark table so the plate stands out ----
     bpy.ops.mesh.primitive_plane_add(size=2.0, location=(0, 0, 0))
@@ -86,8 +86,8 @@ def build_scene(scene, *, scratch_count: int = 3000, seed: int = 7, resolution=(
     render.engine = "MITSUBA_SCRATCH"
     render.resolution_x, render.resolution_y = resolution
     render.resolution_percentage = 100
-    scene.scratch_render.samples = samples
-    scene.scratch_render.film_filter = "box"
+    scene.scratch_iridescence.samples = samples
+    scene.scratch_iridescence.film_filter = "box"
     # Sun glints are ~1000 times brighter than the sky in the mirror: expose for the glints, and
     # keep their colours (AgX would desaturate them towards white).
     scene.view_settings.view_transform = "Standard"

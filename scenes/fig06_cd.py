@@ -96,8 +96,8 @@ def build_scene(scene, *, coherent: bool = True, resolution=(720, 540), samples:
 
     metal = staging.material("CD aluminium", (0.91, 0.92, 0.92), roughness=0.05, metallic=1.0)
     cd = staging.disc("CD", DISC_RADIUS_M, (0.0, 0.0, 0.0012), metal, hole=METAL_INNER_M)
-    cd.scratch.base_material = "Al"
-    cd.scratch.coherent = coherent
+    cd.scratch_iridescence.base_material = "Al"
+    cd.scratch_iridescence.coherent = coherent
     with tempfile.TemporaryDirectory() as temporary:
         path = Path(workdir or temporary) / "cd_tracks.npz"
         path.parent.mkdir(parents=True, exist_ok=True)

@@ -76,7 +76,7 @@ def build_scene(scene, *, coherent: bool = True, resolution=(720, 450), samples:
     from . import staging
 
     plate = staging.metal_plate("Grated plate", PLATE_M, metal="Al")
-    plate.scratch.coherent = coherent
+    plate.scratch_iridescence.coherent = coherent
     staging.operator(bpy.ops.scratch.paint_stroke, plate, stroke=groove_stroke(grooves), brush_mode="PEN",
                      depth_distribution="GAUSSIAN", depth_mean=1000.0, depth_std=0.0,
                      width_distribution="GAUSSIAN", width_mean=1000.0, width_std=0.0)

@@ -126,7 +126,7 @@ def render_worker(blend: Path, output: Path) -> dict:
     bpy.data.images["Render Result"].save_render(filepath=str(stem) + ".png", scene=scene)
     width, height = scene.render.resolution_x, scene.render.resolution_y
     return {"open_s": opened, "render_s": wall, "render_cpu_s": cpu, "peak_mb": peak,
-            "width": width, "height": height, "spp": scene.scratch_render.samples,
+            "width": width, "height": height, "spp": scene.scratch_iridescence.samples,
             "exr": str(stem) + ".exr", "png": str(stem) + ".png", **_scratch_statistics(bpy)}
 
 

@@ -131,7 +131,7 @@ def metal_plate(name: str, size_m, *, metal: str = "Al", height_m: float = 0.002
     """A metal plate (UVs over [0, 1]²) lying on the table; the scratch BSDF's base ``metal``, no scratches yet."""
     look = material(f"{name} metal", (0.91, 0.92, 0.92), roughness=0.05, metallic=1.0)  # the viewport's look
     obj = plane(name, size_m, (0.0, 0.0, height_m), look)
-    obj.scratch.base_material = metal
+    obj.scratch_iridescence.base_material = metal
     return obj
 
 
@@ -282,7 +282,7 @@ def studio_plate(scene, generate: dict, *, resolution, samples: int, exposure: f
 
     plate = metal_plate("Scratched plate", size_m, metal="Al")
     if diffuse_reflectance is not None:
-        plate.scratch.diffuse_reflectance = diffuse_reflectance
+        plate.scratch_iridescence.diffuse_reflectance = diffuse_reflectance
     operator(bpy.ops.scratch.generate, plate, **generate)
     table()
     lamp_studio(scene)
@@ -296,7 +296,7 @@ def render_settings(scene, *, resolution, samples: int, max_depth: int = 4, expo
     render.engine = "MITSUBA_SCRATCH"
     render.resolution_x, render.resolution_y = (int(v) for v in resolution)
     render.resolution_percentage = 100
-    settings = scene.scratch_render
+    settings = scene.scratch_iridescence
     settings.samples = int(samples)
     settings.max_depth = int(max_depth)
     settings.seed = int(seed)

@@ -43,7 +43,7 @@ class OverlayData:
 def overlay_data(obj, depsgraph) -> OverlayData:
     """The overlay's arrays for ``obj`` (cached; see the module docstring)."""
     token = storage.scratch_token(obj)
-    colour_by = obj.scratch.overlay_color_by
+    colour_by = obj.scratch_iridescence.overlay_color_by
 
     def build_lines():
         arrays = mesh_arrays(obj, depsgraph)
@@ -72,7 +72,7 @@ def _visible(context, obj) -> bool:
     overlay = getattr(space, "overlay", None)
     return (obj is not None and obj.type == "MESH" and obj.mode == "OBJECT"
             and overlay is not None and overlay.show_overlays
-            and obj.scratch.show_overlay and storage.has_scratches(obj) and obj.visible_get())
+            and obj.scratch_iridescence.show_overlay and storage.has_scratches(obj) and obj.visible_get())
 
 
 def _draw():

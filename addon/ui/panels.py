@@ -62,12 +62,12 @@ class SCRATCH_PT_scratch_render(_ObjectPanel, bpy.types.Panel):
     bl_parent_id = "SCRATCH_PT_scratches"
 
     def draw(self, context):
-        settings = context.object.scratch
+        settings = context.object.scratch_iridescence
         layout = self.layout
         layout.use_property_split = True
         layout.use_property_decorate = False
         layout.prop(settings, "base_material")
-        layout.prop(settings, "coherence_diameter")
+        layout.prop(settings, "coherence_diameter_um")
         layout.prop(settings, "coherent")
         layout.prop(settings, "diffuse_reflectance")
 
@@ -77,11 +77,11 @@ class SCRATCH_PT_scratch_overlay(_ObjectPanel, bpy.types.Panel):
     bl_parent_id = "SCRATCH_PT_scratches"
 
     def draw_header(self, context):
-        self.layout.prop(context.object.scratch, "show_overlay", text="")
+        self.layout.prop(context.object.scratch_iridescence, "show_overlay", text="")
 
     def draw(self, context):
         obj = context.object
-        settings = obj.scratch
+        settings = obj.scratch_iridescence
         layout = self.layout
         layout.use_property_split = True
         layout.use_property_decorate = False
@@ -95,7 +95,7 @@ class SCRATCH_PT_scratch_overlay(_ObjectPanel, bpy.types.Panel):
 def colour_range(obj) -> tuple[float, float]:
     """The value range the overlay's colour ramp spans for ``obj`` (0, 0 until first drawn)."""
     data = peek("overlay", obj)
-    if data is None or data.key[:2] != (storage.scratch_token(obj), obj.scratch.overlay_color_by):
+    if data is None or data.key[:2] != (storage.scratch_token(obj), obj.scratch_iridescence.overlay_color_by):
         return 0.0, 0.0
     return data.value_range
 

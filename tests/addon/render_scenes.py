@@ -11,7 +11,7 @@ def setup_render(scene, width=32, height=24, samples=4, engine=ENGINE):
     scene.render.engine = engine
     scene.render.resolution_x, scene.render.resolution_y = width, height
     scene.render.resolution_percentage = 100
-    scene.scratch_render.samples = samples
+    scene.scratch_iridescence.samples = samples
     scene.view_settings.view_transform = "Standard"
     scene.render.image_settings.file_format = "OPEN_EXR"
     scene.render.image_settings.color_depth = "32"

@@ -32,7 +32,7 @@ def test_export_writes_a_self_contained_folder(striped_scene, tmp_path):
 
 
 def test_command_line_render_of_the_export_matches_the_engine(striped_scene, tmp_path):
-    striped_scene.scratch_render.samples = 128
+    striped_scene.scratch_iridescence.samples = 128
     engine_image = render_to(striped_scene, tmp_path / "engine.exr")
     bpy.ops.scratch.export_mitsuba(directory=str(tmp_path / "scene"))
     result = subprocess.run([sys.executable, "-m", "scratch_iridescence.mitsuba_bridge", "render", str(tmp_path / "scene"),

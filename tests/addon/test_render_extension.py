@@ -41,7 +41,7 @@ print("ENGINE", engine.__module__)
 scene = bpy.context.scene
 scene.render.engine = "MITSUBA_SCRATCH"
 scene.render.resolution_x, scene.render.resolution_y = 32, 24
-scene.scratch_render.samples = 4
+scene.scratch_iridescence.samples = 4
 scene.render.image_settings.file_format = "PNG"
 scene.render.filepath = output
 bpy.ops.render.render(write_still=True)

@@ -118,7 +118,7 @@ def test06_object_panel_shows_count_summary_buttons_and_settings(scratched_plane
     assert {"scratch.generate", "scratch.clear", "scratch.import_file", "scratch.export_file"} <= set(layout.shown)
     layout = Layout()
     panels.SCRATCH_PT_scratch_render.draw(SimpleNamespace(layout=layout), context)
-    assert layout.shown == ["base_material", "coherence_diameter", "coherent", "diffuse_reflectance"]
+    assert layout.shown == ["base_material", "coherence_diameter_um", "coherent", "diffuse_reflectance"]
     layout = Layout()
     panels.SCRATCH_PT_scratch_overlay.draw_header(SimpleNamespace(layout=layout), context)
     panels.SCRATCH_PT_scratch_overlay.draw(SimpleNamespace(layout=layout), context)
@@ -138,7 +138,7 @@ def test07_overlay_data_is_built_once_per_change(scratched_plane):
     assert np.abs(data.positions[:, 2]).max() < 1e-3 and np.abs(data.positions[:, :2]).max() <= 1.0
     low, high = panels.colour_range(scratched_plane)
     assert 0 < low <= high
-    scratched_plane.scratch.overlay_color_by = "WIDTH"
+    scratched_plane.scratch_iridescence.overlay_color_by = "WIDTH"
     by_width = overlay.overlay_data(scratched_plane, depsgraph)
     assert by_width is not data and np.array_equal(by_width.positions, data.positions)
     bpy.ops.scratch.generate(count=20)

@@ -1,8 +1,4 @@
-"""Eraser hit test, unit formatting, memory checks, and the helpers' independence from Blender."""
-import subprocess
-import sys
-from pathlib import Path
-
+"""Eraser hit test, unit formatting, memory checks.  (That the helpers need no Blender: tests/test_layout.py.)"""
 import numpy as np
 import pytest
 
@@ -73,25 +69,6 @@ def test05_memory_check_refuses_what_does_not_fit():
     check_memory(10, "Small", available=100)
     with pytest.raises(MemoryLimitError, match="Big needs about 1.0 GiB.*0.0 GiB is free"):
         check_memory(2**30, "Big", available=1000)
-
-
-def test06_pure_helpers_import_without_blender():
-    code = """
-import sys
-class Block:
-    def find_spec(self, name, path=None, target=None):
-        if name.split('.')[0] in ('bpy', 'mathutils', 'gpu', 'bmesh', 'bpy_extras'):
-            raise ImportError('blocked: ' + name)
-sys.meta_path.insert(0, Block())
-import importlib
-for name in ('surface', 'trace', 'scatter', 'brush', 'uvmap', 'lines', 'erase', 'units'):
-    importlib.import_module('scratch_iridescence.addon.geometry.' + name)
-print('ok')
-"""
-    root = Path(__file__).resolve().parents[2]
-    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=root)
-    assert result.returncode == 0, result.stderr
-    assert result.stdout.strip() == "ok"
 
 
 def test07_near_stroke_matches_exact_distances():
