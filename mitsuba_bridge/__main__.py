@@ -86,7 +86,12 @@ def _render(args) -> int:
 
 
 def _validate(args) -> int:
-    from . import validation
+    try:
+        from . import validation
+    except ImportError as error:  # the extension zip leaves the validation and its reference out
+        print(f"error: the validation is not part of this installation ({error}); run it from a source "
+              "checkout: python -m scratch_iridescence.mitsuba_bridge validate OUT", file=sys.stderr)
+        return 1
 
     results = validation.run(args.output)
     for name, entry in results["configs"].items():
