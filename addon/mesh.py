@@ -16,6 +16,7 @@ import bpy
 import numpy as np
 from bpy.app.handlers import persistent
 
+from ..mitsuba_bridge.errors import ScratchUserError
 from .geometry.surface import Surface, SurfaceError
 
 __all__ = ["MeshError", "MeshArrays", "scratch_uv_layer", "mesh_arrays", "world_surface", "Picker",
@@ -23,7 +24,7 @@ __all__ = ["MeshError", "MeshArrays", "scratch_uv_layer", "mesh_arrays", "world_
            "register", "unregister"]
 
 
-class MeshError(ValueError):
+class MeshError(ScratchUserError, ValueError):
     """The object cannot carry scratches; the message says why and what to do."""
 
 

@@ -13,6 +13,7 @@ import argparse
 import sys
 
 from . import scratch
+from .errors import ParameterError
 
 
 def _info(args) -> int:
@@ -39,7 +40,7 @@ def _generate(args) -> int:
     try:
         width = scratch.parse_distribution(args.width, "um")
         depth = scratch.parse_distribution(args.depth, "nm")
-    except ValueError as error:
+    except ParameterError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
     scratches = scratch.random_scratches(

@@ -1,13 +1,15 @@
 """Which Mitsuba variant renders: spectral always (diffraction colours need wavelengths), CUDA when present."""
 from __future__ import annotations
 
+from .errors import ScratchUserError
+
 __all__ = ["SPECTRAL_VARIANTS", "VariantError", "choose_variant", "activate"]
 
 #: In order of preference for ``"auto"``.
 SPECTRAL_VARIANTS = ("cuda_ad_spectral", "llvm_ad_spectral")
 
 
-class VariantError(RuntimeError):
+class VariantError(ScratchUserError, RuntimeError):
     """No usable spectral Mitsuba variant (or an unusable one was asked for)."""
 
 

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ...mitsuba_bridge.errors import ParameterError
 from ...mitsuba_bridge.scratch import Distribution, Gaussian, Profile, ScratchSet, Uniform, sample_parameters
 from ...mitsuba_bridge.scratch.noise import hash_uint32
 from .surface import Surface
@@ -81,9 +82,9 @@ class ScatterSpec:
 
     def __post_init__(self):
         if self.count < 0:
-            raise ValueError("count must be >= 0")
+            raise ParameterError("count must be >= 0")
         if not (0 < self.length_min <= self.length_max) or not math.isfinite(self.length_max):
-            raise ValueError(f"lengths must satisfy 0 < min <= max; got {self.length_min}, {self.length_max}")
+            raise ParameterError(f"lengths must satisfy 0 < min <= max; got {self.length_min}, {self.length_max}")
 
 
 @dataclass(frozen=True, eq=False)

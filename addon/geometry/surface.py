@@ -25,6 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...mitsuba_bridge.errors import ScratchUserError
+
 __all__ = ["Surface", "SurfaceError", "EDGE_CORNERS"]
 
 #: Corners (a, b) of edge k, the edge opposite corner k.
@@ -36,7 +38,7 @@ SEAM_TOLERANCE_UV = 1e-6
 DEGENERATE_AREA_FRACTION = 1e-12
 
 
-class SurfaceError(ValueError):
+class SurfaceError(ScratchUserError, ValueError):
     """The mesh cannot carry scratches (no faces, no usable UV area ...)."""
 
 

@@ -12,6 +12,8 @@ import math
 import os
 import sys
 
+from ...mitsuba_bridge.errors import ScratchUserError
+
 __all__ = ["NM", "format_length", "available_memory", "MemoryLimitError", "check_memory"]
 
 #: Metres per nanometre.
@@ -34,7 +36,7 @@ def format_length(metres: float, digits: int = 3) -> str:
     raise AssertionError("unreachable")
 
 
-class MemoryLimitError(MemoryError):
+class MemoryLimitError(ScratchUserError, MemoryError):
     """An operation would need more memory than the machine has free."""
 
 

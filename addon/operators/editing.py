@@ -6,17 +6,18 @@ untouched.  Errors the user can act on become one ``ERROR`` report.
 """
 from __future__ import annotations
 
-from ...mitsuba_bridge.scratch import ScratchFormatError, ScratchSet
+from ...mitsuba_bridge.errors import ScratchUserError
+from ...mitsuba_bridge.scratch import ScratchSet
 from .. import storage
-from ..mesh import MeshError
-from ..geometry.surface import SurfaceError
-from ..geometry.units import MemoryLimitError
 
 __all__ = ["USER_ERRORS", "ObjectModeOperator", "combine", "write", "unit_scale", "plural", "fail",
            "warn_relaxed_arcs"]
 
-#: Exceptions that become a report for the user (a MemoryError without a message gets one).
-USER_ERRORS = (MeshError, SurfaceError, ScratchFormatError, MemoryLimitError, MemoryError, ValueError, OSError)
+#: Exceptions that become a report for the user: the project's user errors (bad parameters, meshes and
+#: files, MeshError, SurfaceError, ScratchFormatError, MemoryLimitError...), the operating system's
+#: (a file that cannot be written) and running out of memory (a MemoryError without a message gets
+#: one).  Not ValueError or TypeError: those are bugs, and they surface with their traceback.
+USER_ERRORS = (ScratchUserError, MemoryError, OSError)
 
 
 class ObjectModeOperator:

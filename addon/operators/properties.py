@@ -18,6 +18,7 @@ import math
 import bpy
 from bpy.props import CollectionProperty, EnumProperty, FloatProperty, IntProperty
 
+from ...mitsuba_bridge.errors import ParameterError
 from ...mitsuba_bridge.scratch import Gaussian, Profile, Uniform
 from ..geometry.scatter import Looks
 from ..geometry.units import NM, format_length
@@ -98,16 +99,16 @@ class LooksProperties:
         if kind == "UNIFORM":
             low, high = getattr(self, f"{what}_min") * NM, getattr(self, f"{what}_max") * NM
             if high < low:
-                raise ValueError(f"{what.title()}: the maximum ({format_length(high)}) is below the "
+                raise ParameterError(f"{what.title()}: the maximum ({format_length(high)}) is below the "
                                  f"minimum ({format_length(low)})")
             if high <= 0:
-                raise ValueError(f"{what.title()}: the maximum must be above 0")
+                raise ParameterError(f"{what.title()}: the maximum must be above 0")
             return Uniform(low, high)
         mean, std = getattr(self, f"{what}_mean") * NM, getattr(self, f"{what}_std") * NM
         try:
             return Gaussian(mean, std)
-        except ValueError:
-            raise ValueError(f"{what.title()}: G[{format_length(mean)}, {format_length(std)}] has "
+        except ParameterError:
+            raise ParameterError(f"{what.title()}: G[{format_length(mean)}, {format_length(std)}] has "
                              "(almost) no positive values; raise the mean or lower the spread") from None
 
 
@@ -126,9 +127,9 @@ class LengthProperties:
         subtype="ANGLE", default=0.0, min=0.0, max=math.pi)
 
     def length_range(self) -> tuple[float, float]:
-        """(min, max) in scene units; raises ValueError with a message for the user."""
+        """(min, max) in scene units; raises ParameterError with a message for the user."""
         if self.length_max < self.length_min:
-            raise ValueError("Length Max is below Length Min")
+            raise ParameterError("Length Max is below Length Min")
         return self.length_min, self.length_max
 
 

@@ -10,6 +10,7 @@ import bpy
 import numpy as np
 from bpy.props import EnumProperty, FloatProperty
 
+from ...mitsuba_bridge.errors import ParameterError
 from ...mitsuba_bridge.scratch import ScratchSet
 from .. import storage
 from ..geometry.brush import pen_scratches, spray_centres
@@ -34,7 +35,7 @@ def _stroke_on_surface(operator, context):
     surface = picker.surface
     locations, starts = operator.stroke_arrays()
     if len(locations) == 0:
-        raise ValueError("The stroke is empty")
+        raise ParameterError("The stroke is empty")
     runs = stroke_runs(picker, locations, starts, SNAP_FRACTION * surface.size)
     if not runs:
         raise MeshError(f"The stroke misses '{obj.name}': none of its {len(locations)} points "

@@ -7,6 +7,8 @@ its length (MODEL.md §7).  Scratch ``i`` owns the vertices
 """
 from __future__ import annotations
 
+from ..errors import ScratchUserError
+
 import enum
 from dataclasses import dataclass, fields
 from typing import Iterable, Sequence
@@ -23,7 +25,7 @@ class Profile(enum.IntEnum):
     TRIANGULAR = 1  #: V-groove, deepest on the centre line
 
 
-class ScratchFormatError(ValueError):
+class ScratchFormatError(ScratchUserError, ValueError):
     """A scratch set or scratch file breaks format v1.
 
     Parameters
