@@ -85,8 +85,6 @@ def build_worker(module_name: str, render_name: str, output: Path, resolution, s
 
 def _scratch_statistics(bpy) -> dict:
     """Scratch count, segments and load time of the scene's scratched objects (after the render)."""
-    import mitsuba as mi
-
     from ..mitsuba_bridge import bsdf, scratch
     from ..addon import storage
 
@@ -98,7 +96,7 @@ def _scratch_statistics(bpy) -> dict:
         data = storage.raw_scratch_bytes(obj)
         began = time.perf_counter()
         scratches = scratch.loads(data)
-        loaded = mi.load_dict(bsdf.plugin_dict(scratches, unit_scale=1.0))
+        loaded = bsdf.load(scratches, unit_scale=1.0)
         load_s += time.perf_counter() - began
         del loaded
         count += scratches.count

@@ -95,6 +95,18 @@ def test_packages_use_relative_imports_only(package):
                         f"{path.relative_to(ROOT)} imports {name}: this folder must not touch Blender"
 
 
+def test_gather_and_builder_meet_only_in_the_scene_description():
+    # Gathering (Blender -> SceneDescription) and building (SceneDescription -> Mitsuba dict) share no
+    # helpers: invariants such as orthonormal frames live in mitsuba_bridge/scene.py.
+    for folder, forbidden in [("addon/render/gather", ("mitsuba_bridge.builder", "mitsuba_bridge.bsdf")),
+                              ("mitsuba_bridge/builder", ("addon",))]:
+        for path in _python_files(folder):
+            for node in ast.walk(ast.parse(path.read_text(), str(path))):
+                if isinstance(node, ast.ImportFrom):
+                    module = (node.module or "").lstrip(".")
+                    assert not module.startswith(forbidden), f"{path.relative_to(ROOT)} imports {node.module}"
+
+
 def test_top_level_layout_is_as_documented():
     tracked = subprocess.run(["git", "ls-files"], capture_output=True, text=True, cwd=ROOT).stdout.split()
     if not tracked:
