@@ -120,7 +120,8 @@ def _validation_section(validation: dict) -> list[str]:
              "height maps of one scratch and of ten random scratches (Fig. 16), at 9, 36 and 144 MP: the "
              "discretisation's ghosting fades as the height map refines, while the parallelogram-shaped "
              "features of scratch–scratch crossings are not reproduced by the model (Fig. 15).", "",
-             "Here (`python -m scratch_iridescence.mitsuba_bridge validate OUT`, `mitsuba_bridge/validation.py`): the BRDF of one "
+             "Here (`python -m scratch_iridescence.mitsuba_bridge validate OUT`, "
+             "`mitsuba_bridge/validation.py`): the BRDF of one "
              f"coherence area (σ = {validation['sigma_um']:g} µm, δ_c = 30 µm, perfect mirror base) at normal "
              "incidence over the whole plane of outgoing direction cosines "
              f"({validation['plane_samples']}² directions), at 650, 550 and 450 nm. Brute force: the height "
@@ -229,7 +230,7 @@ def _benchmarks(figures, records: dict) -> str:
              "**Samples per core-second** = pixels × spp / CPU seconds of the render call. The paper's figure "
              f"comes from the supplement's times on {PAPER_CORES} cores: pixels × {PAPER_SPP} spp / (minutes × 60 "
              f"× {PAPER_CORES}), 4 MP unless noted. The paper traced 16 wavelengths per sample, we trace 4 per "
-             "path (hero wavelength sampling, MODEL.md §5-6), so one of our samples carries a quarter of the "
+             "path (hero wavelength sampling, docs/model.md §5–6), so one of our samples carries a quarter of the "
              "spectral information of one of theirs: per wavelength sample, divide the ratio by 4. The render "
              "call includes gathering the scene, building the scratch tables and compiling the kernels; "
              "*passes only* charges that set-up (mostly one thread) to one core and counts the rest.", "",

@@ -41,7 +41,7 @@ _BYTES_PER_VERTEX = 400
 
 @dataclass(frozen=True)
 class Looks:
-    """What a scratch looks like apart from its path (MODEL.md §7).
+    """What a scratch looks like apart from its path (docs/model.md §7).
 
     ``width`` and ``depth`` are distributions in metres; the variations are
     (relative amplitude, frequency) as in the scratch file.

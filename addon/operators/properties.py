@@ -52,7 +52,7 @@ def _nm(name: str, description: str, default: float, **limits):
 
 
 class LooksProperties:
-    """Width, depth, profile and variation of new scratches (MODEL.md §7)."""
+    """Width, depth, profile and variation of new scratches (docs/model.md §7)."""
 
     depth_distribution: EnumProperty(name="Depth", items=_DISTRIBUTIONS, default="GAUSSIAN",
                                      description="How scratch depths are distributed")

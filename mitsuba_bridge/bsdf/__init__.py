@@ -1,4 +1,4 @@
-"""The wave-optical scratch BSDF ``scratch_diffraction`` for Mitsuba 3 (MODEL.md).
+"""The wave-optical scratch BSDF ``scratch_diffraction`` for Mitsuba 3 (docs/model.md).
 
 Importing this package imports neither Mitsuba nor Dr.Jit; the functions
 below do, and need an active variant (``mi.set_variant(...)``).

@@ -8,7 +8,7 @@ What the BSDF kernel reads (uploaded once per scratch set):
 
   ``a = a_hi + a_lo`` is the start point in UV as a float32 pair: the kernel
   forms ``(a_hi - uv) + a_lo`` and so gets ``a - x0`` to the float32 accuracy
-  of the *difference*, not of the absolute coordinate (MODEL.md §1).
+  of the *difference*, not of the absolute coordinate (docs/model.md §1).
   ``e = b - a``.  A negative depth marks a V-groove (depth 0 never reaches the
   table).
 ``cell_start`` (nu·nv + 1,) uint32: the pieces of cell ``i = v·nu + u`` are rows

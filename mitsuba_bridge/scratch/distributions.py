@@ -1,4 +1,4 @@
-"""Distributions of per-scratch parameters, in the paper's notation (MODEL.md §7).
+"""Distributions of per-scratch parameters, in the paper's notation (docs/model.md §7).
 
 ``U[lower, upper]`` is :class:`Uniform`, ``G[mean, std]`` is :class:`Gaussian`,
 a fixed value is :class:`Constant`.  Widths and depths must be positive, so a

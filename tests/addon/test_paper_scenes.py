@@ -54,7 +54,7 @@ def test01_every_figure_has_renders_its_builder_accepts_and_the_papers_times():
         for render in figure.renders:
             assert set(render.options) <= set(parameters), (figure.key, render.name)
             assert render.paper_minutes > 0 and render.samples > 0
-    # MODEL.md §10: Fig. 7(b) is 1 MP × 16 384 spp in 15 min on 72 cores, about 2.5e5 samples per core-second.
+    # docs/model.md §10: Fig. 7(b) is 1 MP × 16 384 spp in 15 min on 72 cores, about 2.5e5 samples per core-second.
     assert fig07_plate.FIGURE.renders[0].paper_samples_per_core_second == pytest.approx(2.53e5, rel=0.01)
 
 

@@ -8,7 +8,7 @@ rendered in passes of ``--pass-spp``, path tracer of depth 3, llvm_ad_spectral.
 Core-seconds are the process's CPU time (user + system, every thread), so the
 figure does not depend on how many cores are free on a shared machine.  Target
 (issue 3): at least 1e6 samples per core-second; the paper rendered this figure
-at about 2.5e5 (MODEL.md §10).  ``roughconductor`` on the same plate gives the
+at about 2.5e5 (docs/model.md §10).  ``roughconductor`` on the same plate gives the
 cost of everything but the scratch BSDF.
 
 Run: ``.venv/bin/python tests/bench/bench_render.py [--out out/plate.png]``.

@@ -14,6 +14,9 @@ from scratch_iridescence.mitsuba_bridge.ply import write_ply
 
 ROOT = Path(__file__).resolve().parents[2]
 
+#: The bridge's command line.
+CLI = [sys.executable, "-m", "scratch_iridescence.mitsuba_bridge"]
+
 
 def rich_scene(tmp_path):
     """Textures from a file and from pixels, an instanced mesh, every light and a sky."""
@@ -85,7 +88,7 @@ def test03_ply_files_round_trip_through_mitsuba(variant, tmp_path):
 def test04_command_line_renders_an_exported_folder_to_exr(variant, tmp_path):
     export.export_folder(rich_scene(tmp_path), S.RenderSettings(spp=4), tmp_path / "out")
     output = tmp_path / "image.exr"
-    result = subprocess.run([sys.executable, "-m", "scratch_iridescence.mitsuba_bridge", "render", str(tmp_path / "out"), "-o",
+    result = subprocess.run([*CLI, "render", str(tmp_path / "out"), "-o",
                              str(output), "--spp", "8"], capture_output=True, text=True, cwd=ROOT)
     assert result.returncode == 0, result.stderr
     assert "8/8 spp" in result.stdout and output.is_file()
@@ -94,7 +97,7 @@ def test04_command_line_renders_an_exported_folder_to_exr(variant, tmp_path):
 
 
 def test05_command_line_explains_a_missing_folder(tmp_path):
-    result = subprocess.run([sys.executable, "-m", "scratch_iridescence.mitsuba_bridge", "render", str(tmp_path / "nothing"), "-o",
+    result = subprocess.run([*CLI, "render", str(tmp_path / "nothing"), "-o",
                              str(tmp_path / "x.exr")], capture_output=True, text=True, cwd=ROOT)
     assert result.returncode == 1 and "no such scene file" in result.stderr
     assert not (tmp_path / "x.exr").exists()

@@ -6,7 +6,8 @@ import pytest
 
 from scratch_iridescence.mitsuba_bridge.bsdf import memory
 from scratch_iridescence.mitsuba_bridge.bsdf.tables import MAX_PIECE_UV, TARGET_PER_CELL, build_tables
-from scratch_iridescence.mitsuba_bridge.scratch import Gaussian, Profile, ScratchFormatError, ScratchSet, random_scratches, subdivide
+from scratch_iridescence.mitsuba_bridge.scratch import (Gaussian, Profile, ScratchFormatError, ScratchSet,
+                                                      random_scratches, subdivide)
 
 
 @pytest.fixture(scope="module")

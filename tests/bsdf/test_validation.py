@@ -1,5 +1,5 @@
-"""The numerical validation (``python -m scratch_iridescence.mitsuba_bridge validate``) on a coarse plane: whole-plane brute force
-against the plugin, the crossing bookkeeping of the height-field raster, the figure."""
+"""The numerical validation (``python -m scratch_iridescence.mitsuba_bridge validate``) on a coarse plane:
+whole-plane brute force against the plugin, the crossing bookkeeping of the height-field raster, the figure."""
 import numpy as np
 import pytest
 

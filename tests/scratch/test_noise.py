@@ -1,4 +1,4 @@
-"""Simplex noise and the variation of width and depth along a scratch (MODEL.md §7)."""
+"""Simplex noise and the variation of width and depth along a scratch (docs/model.md §7)."""
 import numpy as np
 import pytest
 

@@ -2,7 +2,8 @@
 import numpy as np
 import pytest
 
-from scratch_iridescence.mitsuba_bridge.scratch import Gaussian, Profile, ScratchFormatError, ScratchSet, random_scratches
+from scratch_iridescence.mitsuba_bridge.scratch import (Gaussian, Profile, ScratchFormatError, ScratchSet,
+                                                      random_scratches)
 
 
 def test_arrays_are_read_only(two_scratches):

@@ -5,8 +5,8 @@ from scipy import stats
 
 from meshes import grid, ring, torus, unequal_quads
 from scratch_iridescence.addon.geometry.brush import pen_scratches, spray_centres
-from scratch_iridescence.addon.geometry.scatter import (MAX_SEGMENTS, SAGITTA_FRACTION, Looks, ScatterSpec, estimate_bytes,
-                                               scatter, scratches_from_centres)
+from scratch_iridescence.addon.geometry.scatter import (MAX_SEGMENTS, SAGITTA_FRACTION, Looks, ScatterSpec,
+                                                        estimate_bytes, scatter, scratches_from_centres)
 from scratch_iridescence.addon.geometry.surface import Surface
 from scratch_iridescence.addon.geometry.uvmap import UVLocator
 from scratch_iridescence.mitsuba_bridge.scratch import Constant, Gaussian, Profile, Uniform
