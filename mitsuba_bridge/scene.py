@@ -8,7 +8,7 @@ code without either program.
 Conventions
 -----------
 * World space is Blender's: right-handed, +Z up, lengths in scene units
-  (metres × ``unit_scale``).
+  (metres × ``ScratchedMetal.metres_per_unit``).
 * Matrices are 4×4 float64, column vectors (``p_world = M @ p_local``).
 * ``Camera.to_world`` and the light matrices keep Blender's local frames: a
   camera looks along its local −Z with +Y up, spot and area lights shine along
@@ -203,14 +203,14 @@ class Emission:
 class ScratchedMetal:
     """A scratched surface rendered with the ``scratch_diffraction`` BSDF.
 
-    ``coherence_diameter_m`` is in metres; ``unit_scale`` is metres per scene
-    unit (maps the mesh's UV Jacobian to metres); ``material`` is a Mitsuba
+    ``coherence_diameter_m`` is in metres; ``metres_per_unit`` is metres per
+    scene unit (maps the mesh's UV Jacobian to metres; the plugin's ``unit_scale``); ``material`` is a Mitsuba
     conductor name or ``"none"`` (perfect mirror).
     """
 
     scratches: ScratchSet
     coherence_diameter_m: float
-    unit_scale: float = 1.0
+    metres_per_unit: float = 1.0
     material: str = "Al"
     coherent: bool = True
     diffuse_reflectance: Optional[RGB] = None

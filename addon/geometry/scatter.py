@@ -64,7 +64,8 @@ class ScatterSpec:
     """A request for ``count`` scratches scattered uniformly over a surface.
 
     Lengths are surface units (Blender units of the world-space mesh);
-    ``unit_scale`` is metres per unit, used to compare lengths with widths.
+    ``metres_per_unit`` converts them to metres, to compare lengths with widths
+    (which are metres, like everything physical).
     ``angle`` None draws directions uniformly; otherwise they are uniform in
     ``angle ± angle_spread`` (radians, from the tangent towards the bitangent).
     ``bend`` is the largest angle (radians) by which a scratch turns along its
@@ -78,7 +79,7 @@ class ScatterSpec:
     angle: float | None = None
     angle_spread: float = 0.0
     bend: float = 0.0
-    unit_scale: float = 1.0
+    metres_per_unit: float = 1.0
 
     def __post_init__(self):
         if self.count < 0:
@@ -113,7 +114,7 @@ def expected_vertices(spec: ScatterSpec) -> float:
     """Expected vertices per scratch from arcs alone (edge crossings come on top)."""
     if spec.bend == 0:
         return 4.0
-    width_units = max(_typical(spec.looks.width), 1e-12) / spec.unit_scale
+    width_units = max(_typical(spec.looks.width), 1e-12) / spec.metres_per_unit
     length = 0.5 * (spec.length_min + spec.length_max)
     return 4.0 + float(min(MAX_SEGMENTS, _segments_for(length, 0.5 * spec.bend, width_units)))
 
@@ -149,11 +150,11 @@ def scatter(surface: Surface, spec: ScatterSpec, rng: np.random.Generator) -> Pl
     params = spec.looks.sample(rng, count)
     direction = surface.direction(triangle, angle)
     return scratches_from_centres(surface, triangle, bary, direction, length, params, bend=bend,
-                                  unit_scale=spec.unit_scale)
+                                  metres_per_unit=spec.metres_per_unit)
 
 
 def scratches_from_centres(surface: Surface, triangle, bary, direction, length, params: dict, *,
-                           bend=None, unit_scale: float = 1.0) -> Placed:
+                           bend=None, metres_per_unit: float = 1.0) -> Placed:
     """Scratches centred at given surface points, traced in both directions.
 
     ``params`` holds one entry per scratch for every non-geometric field of a
@@ -161,7 +162,7 @@ def scratches_from_centres(surface: Surface, triangle, bary, direction, length, 
     """
     count = len(triangle)
     bend = np.zeros(count) if bend is None else np.asarray(bend, dtype=np.float64)
-    width_units = params["width"] / unit_scale
+    width_units = params["width"] / metres_per_unit
     needed = _segments_for(length, bend, width_units)
     segments = np.minimum(needed, MAX_SEGMENTS)
     turn_every = length / segments

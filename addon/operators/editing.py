@@ -10,7 +10,7 @@ from ...mitsuba_bridge.errors import ScratchUserError
 from ...mitsuba_bridge.scratch import ScratchSet
 from .. import storage
 
-__all__ = ["USER_ERRORS", "ObjectModeOperator", "combine", "write", "unit_scale", "plural", "fail",
+__all__ = ["USER_ERRORS", "ObjectModeOperator", "combine", "write", "metres_per_unit", "plural", "fail",
            "warn_relaxed_arcs"]
 
 #: Exceptions that become a report for the user: the project's user errors (bad parameters, meshes and
@@ -45,8 +45,8 @@ def write(obj, scratches: ScratchSet) -> None:
     storage.write_scratches(obj, scratches)
 
 
-def unit_scale(context) -> float:
-    """Metres per scene unit."""
+def metres_per_unit(context) -> float:
+    """Metres per scene unit (the scene's unit scale)."""
     return float(context.scene.unit_settings.scale_length) or 1.0
 
 

@@ -6,7 +6,7 @@ import numpy as np
 from bpy.props import EnumProperty, FloatProperty, IntProperty
 
 from .. import storage
-from .editing import (USER_ERRORS, ObjectModeOperator, combine, fail, plural, unit_scale, warn_relaxed_arcs,
+from .editing import (USER_ERRORS, ObjectModeOperator, combine, fail, plural, metres_per_unit, warn_relaxed_arcs,
                       write)
 from ..mesh import check_object, world_surface
 from ..geometry.scatter import ScatterSpec, estimate_bytes, expected_vertices, scatter
@@ -51,7 +51,7 @@ class SCRATCH_OT_generate(ObjectModeOperator, LooksProperties, LengthProperties,
             spec = ScatterSpec(
                 count=self.count, length_min=length_min, length_max=length_max, looks=self.looks(),
                 angle=None if self.orientation == "RANDOM" else self.angle, angle_spread=self.angle_spread,
-                bend=self.bend, unit_scale=unit_scale(context))
+                bend=self.bend, metres_per_unit=metres_per_unit(context))
             existing_bytes = storage.scratch_summary(obj)["count"] * 200 if self.mode == "ADD" else 0
             check_memory(estimate_bytes(spec.count, expected_vertices(spec)) + existing_bytes,
                          f"Generating {plural(spec.count)}")

@@ -14,7 +14,7 @@ from ...mitsuba_bridge.errors import ParameterError
 from ...mitsuba_bridge.scratch import ScratchSet
 from .. import storage
 from ..geometry.brush import pen_scratches, spray_centres
-from ..operators.editing import USER_ERRORS, combine, fail, plural, unit_scale, warn_relaxed_arcs, write
+from ..operators.editing import USER_ERRORS, combine, fail, plural, metres_per_unit, warn_relaxed_arcs, write
 from ..geometry.erase import cut_scratches, touched_scratches
 from ..geometry.lines import scratch_lines
 from ..mesh import MeshError, cached, matrix_key, picker_for
@@ -102,7 +102,7 @@ class SCRATCH_OT_paint_stroke(StrokeOperator, StrokeProperties, LooksProperties,
         length = rng.uniform(length_min, length_max, count)
         bend = rng.uniform(-self.bend, self.bend, count) if self.bend > 0 else np.zeros(count)
         return scratches_from_centres(surface, triangle, bary, directions, length, looks.sample(rng, count),
-                                      bend=bend, unit_scale=unit_scale(context))
+                                      bend=bend, metres_per_unit=metres_per_unit(context))
 
     def draw(self, context):
         layout = self.layout

@@ -327,7 +327,7 @@ def test_scratched_object_carries_its_scratches_and_settings(staged):
     metal = description.materials[shape.material]
     assert isinstance(metal, S.ScratchedMetal)
     assert metal.scratches == plate_scratches()
-    assert metal.material == "Au" and metal.coherent is False and metal.unit_scale == pytest.approx(0.01)
+    assert metal.material == "Au" and metal.coherent is False and metal.metres_per_unit == pytest.approx(0.01)
     assert metal.coherence_diameter_m == pytest.approx(40e-6)
     assert metal.diffuse_reflectance == pytest.approx((0.1, 0.0, 0.0))
 

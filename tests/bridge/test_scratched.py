@@ -36,7 +36,7 @@ def metal(scratches, **settings):
 def test_scratched_metal_becomes_the_scratch_bsdf_with_its_settings(variant, scratches):
     from scratch_iridescence.mitsuba_bridge.bsdf import PLUGIN_NAME
 
-    bsdf = builder.bsdf_dict(metal(scratches, material="Au", coherent=False, unit_scale=0.01,
+    bsdf = builder.bsdf_dict(metal(scratches, material="Au", coherent=False, metres_per_unit=0.01,
                                    diffuse_reflectance=(0.1, 0.2, 0.3)), builder.InMemory(), key="plate")
     assert bsdf["type"] == PLUGIN_NAME and bsdf["material"] == "Au" and bsdf["coherent"] is False
     assert bsdf["unit_scale"] == 0.01 and bsdf["coherence_diameter"] == 30e-6

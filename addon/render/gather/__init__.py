@@ -130,7 +130,7 @@ def _uses_texture(material) -> bool:
 def _scratched_metal(obj, scene, has_uvs: bool, warnings: Warnings) -> ScratchedMetal:
     """The scratch BSDF settings of ``obj`` (its scratches, base metal, coherence)."""
     settings = obj.scratch_iridescence
-    unit_scale = float(scene.unit_settings.scale_length)
+    metres_per_unit = float(scene.unit_settings.scale_length)
     try:
         scratches = read_scratches(obj)
     except ScratchFormatError as error:
@@ -142,5 +142,5 @@ def _scratched_metal(obj, scene, has_uvs: bool, warnings: Warnings) -> Scratched
         scratches = ScratchSet.empty()
     diffuse = tuple(float(c) for c in settings.diffuse_reflectance)
     return ScratchedMetal(scratches=scratches, coherence_diameter_m=float(settings.coherence_diameter_um) * 1e-6,
-                          unit_scale=unit_scale, material=settings.base_material, coherent=bool(settings.coherent),
+                          metres_per_unit=metres_per_unit, material=settings.base_material, coherent=bool(settings.coherent),
                           diffuse_reflectance=diffuse if any(diffuse) else None)
