@@ -9,7 +9,8 @@ physical size in micrometres (``coherence_diameter_um``).
 Blender keeps the ID properties of unregistered names in the file, so an old
 file still carries the groups ``obj["scratch"]`` and ``scene["scratch_render"]``:
 :func:`upgrade_file` copies them into the new groups with the same meaning and
-removes them.  Values never changed from a default were never stored and take
+removes them, when a file loads and when the add-on is enabled with a file
+open.  Values never changed from a default were never stored and take
 the new default (for the diameter: 30 µm, where 0.1 gave 30 µm times the scene's
 unit scale).  Upgrading twice does nothing.
 """
@@ -73,6 +74,10 @@ def _on_load(_filepath, *_args):
 def register():
     if _on_load not in bpy.app.handlers.load_post:
         bpy.app.handlers.load_post.append(_on_load)
+    try:
+        upgrade_file()  # the add-on enabled while an old file is open
+    except AttributeError:  # bpy.data is restricted while Blender starts; load_post handles that file
+        pass
 
 
 def unregister():

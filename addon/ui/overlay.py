@@ -22,7 +22,7 @@ from ..geometry.lines import overlay_arrays, scratch_lines
 from ..mesh import cached, mesh_arrays
 from ..geometry.uvmap import UVLocator
 
-__all__ = ["OverlayData", "overlay_data", "register", "unregister"]
+__all__ = ["OverlayData", "overlay_data", "drawable_data", "register", "unregister"]
 
 #: Lines are lifted off the surface by this fraction of the object's size.
 LIFT_FRACTION = 2e-4
@@ -75,17 +75,30 @@ def _visible(context, obj) -> bool:
             and obj.scratch_iridescence.show_overlay and storage.has_scratches(obj) and obj.visible_get())
 
 
-def _draw():
-    context = bpy.context
+def drawable_data(context):
+    """The overlay data of the active object, or None when there is nothing to draw.
+
+    A user error (a mesh the overlay cannot use) draws nothing; the panel and the
+    operators report it.  Anything else is a bug and raises.
+    """
     obj = context.active_object
-    if bpy.app.background or not _visible(context, obj):
-        return
+    if not _visible(context, obj):
+        return None
     try:
         data = overlay_data(obj, context.view_layer.depsgraph)
     except USER_ERRORS:
+        return None
+    return data if len(data.positions) else None
+
+
+def _draw():
+    context = bpy.context
+    if bpy.app.background:
         return
-    if not len(data.positions):
+    data = drawable_data(context)
+    if data is None:
         return
+    obj = context.active_object
     import gpu
     from gpu_extras.batch import batch_for_shader
 

@@ -113,3 +113,13 @@ def test_a_file_of_version_0_1_loads_with_the_same_settings(plane, tmp_path):
     bpy.ops.wm.save_as_mainfile(filepath=str(path))
     bpy.ops.wm.open_mainfile(filepath=str(path))
     assert bpy.data.objects["Plane"].scratch_iridescence.coherence_diameter_um == pytest.approx(40.0)
+
+
+def test_enabling_the_addon_upgrades_the_open_file(plane):
+    from scratch_iridescence.addon import versioning
+
+    plane["scratch"] = {"coherence_diameter": 5e-5, "show_overlay": 0}  # metres: scale_length 1
+    versioning.register()  # as when the add-on is enabled in the preferences with this file open
+    assert plane.scratch_iridescence.coherence_diameter_um == pytest.approx(50.0)
+    assert not plane.scratch_iridescence.show_overlay and "scratch" not in plane
+    assert bpy.app.handlers.load_post.count(versioning._on_load) == 1

@@ -44,3 +44,25 @@ def test03_a_bug_inside_an_operator_surfaces_as_a_traceback(scratched_plane, mon
     message = str(raised.value)
     assert "Traceback" in message and type(bug).__name__ in message and str(bug) in message
     assert storage.raw_scratch_bytes(scratched_plane) == before
+
+
+def test04_the_overlay_draws_nothing_on_user_errors_and_lets_bugs_raise(scratched_plane, monkeypatch):
+    from types import SimpleNamespace
+
+    from scratch_iridescence.addon.ui import overlay
+
+    context = SimpleNamespace(active_object=scratched_plane, view_layer=bpy.context.view_layer,
+                              space_data=SimpleNamespace(overlay=SimpleNamespace(show_overlays=True)))
+    data = overlay.drawable_data(context)
+    assert data is not None and len(data.positions) >= 2 * 50  # the 50 scratches, as line pieces
+
+    def raising(error):
+        def overlay_data(*_args):
+            raise error
+        return overlay_data
+
+    monkeypatch.setattr(overlay, "overlay_data", raising(MeshError("the mesh has no faces")))
+    assert overlay.drawable_data(context) is None
+    monkeypatch.setattr(overlay, "overlay_data", raising(ValueError("a bug in the line builder")))
+    with pytest.raises(ValueError, match="a bug in the line builder"):
+        overlay.drawable_data(context)
