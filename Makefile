@@ -74,15 +74,15 @@ test-slow: setup llvm15-for-tests
 # engine into out/demo.exr (linear) and out/demo.png (display-referred).
 demo: setup
 	@mkdir -p out
-	$(PY) -m scratch_iridescence.addon.scenes.demo --output out
+	$(PY) -m scratch_iridescence.scenes.demo --output out
 
-# Builds every reproduced figure of the paper (addon/scenes/fig*.py) with the add-on's operators, renders
+# Builds every reproduced figure of the paper (scenes/fig*.py) with the add-on's operators, renders
 # each in a fresh process through the engine into out/paper/ (EXR, PNG, .blend, statistics), runs the
 # numerical validation and writes docs/gallery.md, docs/benchmarks.md and docs/gallery/*.png.
 # About 16 minutes on the 2-core development machine (docs/gallery.md lists each picture's time).
 paper: setup
 	@mkdir -p out/paper
-	$(PY) -m scratch_iridescence.addon.scenes.paper --output out/paper --docs docs
+	$(PY) -m scratch_iridescence.scenes.paper --output out/paper --docs docs
 
 # Downloads the wheels named in blender_manifest.toml into wheels/ (once), builds
 # one zip per platform into dist/ and validates them with Blender's own tool.

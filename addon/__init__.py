@@ -1,11 +1,14 @@
 """The Blender side of Scratch Iridescence: storage, operators, tools, overlay, panels, rendering.
 
+Rooms (docs/architecture.md): ``geometry/`` (Blender-free numpy: surfaces,
+paths, scattering, overlay lines), ``operators/``, ``tools/`` (the brushes),
+``ui/`` (panels, overlay), ``render/`` (engine, gather, export), and next to
+them the object data (``storage``, ``object_settings``, ``mesh``, ``versioning``).
+
 Modules that define Blender classes expose ``register()`` / ``unregister()``;
 they are listed here in registration order (property groups first).  They are
-imported when the add-on registers, not when this package is imported: the
-Blender-free helpers next to them (``surface``, ``trace``, ``scatter``,
-``brush``, ``uvmap``, ``lines``, ``erase``, ``units``) must stay importable without ``bpy``
-so that tests and scripts can use them anywhere.
+imported when the add-on registers, not when this package is imported, so that
+``geometry`` stays importable without ``bpy``.
 """
 from __future__ import annotations
 
@@ -13,13 +16,14 @@ import importlib
 
 # Module names relative to this package, in registration order.
 _MODULES = (
-    "properties",
+    "object_settings",
+    "versioning",
     "mesh",
-    "generate",
-    "files",
-    "paint",
-    "overlay",
-    "panels",
+    "operators.generate",
+    "operators.files",
+    "tools.paint",
+    "ui.overlay",
+    "ui.panels",
     "render.settings",
     "render.engine",
     "render.panels",

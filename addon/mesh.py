@@ -16,14 +16,15 @@ import bpy
 import numpy as np
 from bpy.app.handlers import persistent
 
-from .surface import Surface, SurfaceError
+from ..mitsuba_bridge.errors import ScratchUserError
+from .geometry.surface import Surface, SurfaceError
 
 __all__ = ["MeshError", "MeshArrays", "scratch_uv_layer", "mesh_arrays", "world_surface", "Picker",
            "picker_for", "matrix_key", "geometry_generation", "cached", "peek", "clear_caches", "check_object",
            "register", "unregister"]
 
 
-class MeshError(ValueError):
+class MeshError(ScratchUserError, ValueError):
     """The object cannot carry scratches; the message says why and what to do."""
 
 

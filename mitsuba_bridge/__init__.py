@@ -5,10 +5,20 @@ functions that need it.  Its one side effect: where the extension bundles a
 libLLVM and the user has not set ``DRJIT_LIBLLVM_PATH``, it points Dr.Jit at the
 bundled library (see :mod:`.llvm_library`), which must happen before ``drjit``
 is first imported.
+
+Its one import name is ``scratch_iridescence.mitsuba_bridge`` (inside Blender:
+``bl_ext.<repository>.scratch_iridescence.mitsuba_bridge``, reached relatively by
+the add-on).  Imported as a top-level ``mitsuba_bridge`` (a Python started in the
+repository root puts it on the path) it would be a second copy of every class,
+whose scene objects the first copy rejects, so that name is refused.
 """
 from __future__ import annotations
 
-from . import llvm_library
+if "." not in __name__:
+    raise ImportError(f"import the bridge as 'scratch_iridescence.mitsuba_bridge', not '{__name__}' "
+                      "(one name, one copy of every class; docs/architecture.md)")
+
+from . import llvm_library  # noqa: E402  (after the name check: nothing to configure for a refused copy)
 
 llvm_library.configure()
 

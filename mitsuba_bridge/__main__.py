@@ -1,4 +1,4 @@
-"""Command line: ``python -m mitsuba_bridge <command> ...``.
+"""Command line: ``python -m scratch_iridescence.mitsuba_bridge <command> ...``.
 
 Commands
 --------
@@ -13,6 +13,7 @@ import argparse
 import sys
 
 from . import scratch
+from .errors import ParameterError
 
 
 def _info(args) -> int:
@@ -39,7 +40,7 @@ def _generate(args) -> int:
     try:
         width = scratch.parse_distribution(args.width, "um")
         depth = scratch.parse_distribution(args.depth, "nm")
-    except ValueError as error:
+    except ParameterError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
     scratches = scratch.random_scratches(
@@ -86,7 +87,12 @@ def _render(args) -> int:
 
 
 def _validate(args) -> int:
-    from . import validation
+    try:
+        from . import validation
+    except ImportError as error:  # the extension zip leaves the validation and its reference out
+        print(f"error: the validation is not part of this installation ({error}); run it from a source "
+              "checkout: python -m scratch_iridescence.mitsuba_bridge validate OUT", file=sys.stderr)
+        return 1
 
     results = validation.run(args.output)
     for name, entry in results["configs"].items():
@@ -99,8 +105,9 @@ def _validate(args) -> int:
 
 
 def main(argv=None) -> int:
-    """Entry point of ``python -m mitsuba_bridge``."""
-    parser = argparse.ArgumentParser(prog="python -m mitsuba_bridge", description=__doc__.split("\n")[0])
+    """Entry point of ``python -m scratch_iridescence.mitsuba_bridge``."""
+    parser = argparse.ArgumentParser(prog="python -m scratch_iridescence.mitsuba_bridge",
+                                     description=__doc__.split("\n")[0])
     commands = parser.add_subparsers(dest="command", required=True)
 
     info = commands.add_parser("info", help="summarise and validate scratch files")

@@ -7,7 +7,7 @@ Layout::
     folder/textures/*         copied image files, or EXR for packed/generated images
     folder/scratches/*.npz    scratch files, format v1
 
-``python -m mitsuba_bridge render folder -o out.exr`` renders it without Blender.
+``python -m scratch_iridescence.mitsuba_bridge render folder -o out.exr`` renders it without Blender.
 """
 from __future__ import annotations
 

@@ -8,11 +8,17 @@ code without either program.
 Conventions
 -----------
 * World space is Blender's: right-handed, +Z up, lengths in scene units
-  (metres × ``unit_scale``).
+  (metres × ``ScratchedMetal.metres_per_unit``).
 * Matrices are 4×4 float64, column vectors (``p_world = M @ p_local``).
 * ``Camera.to_world`` and the light matrices keep Blender's local frames: a
   camera looks along its local −Z with +Y up, spot and area lights shine along
   their local −Z.  The builder converts to Mitsuba's frames.
+* Frames that must not scale are made orthonormal here, once, whoever builds
+  the description: ``Camera.to_world`` and ``SpotLight.to_world`` keep rotation
+  and translation and lose scale and shear (:func:`orthonormal`), so a scaled
+  camera or spot object in Blender renders as an unscaled one.  Area lights
+  keep their matrix: its scale is the emitter's size.  Gathering and building
+  rely on this and never normalise frames themselves.
 * Colours are linear Rec.709 RGB triples; radiometric quantities are physical:
   W/sr (point, spot), W/m² (sun), W/(m²·sr) (area lights, emission, world).
 * UV coordinates are Blender's (v up, image row 0 at the top of the texture
@@ -32,7 +38,7 @@ __all__ = [
     "RGB", "Film", "Camera", "Texture", "Diffuse", "Principled", "Glossy", "Emission", "ScratchedMetal",
     "Material", "MeshData", "Shape", "PointLight", "SpotLight", "SunLight", "AreaLight", "Light",
     "ConstantWorld", "EnvironmentWorld", "SkyWorld", "World", "RenderSettings", "SceneDescription",
-    "FILTERS",
+    "FILTERS", "orthonormal",
 ]
 
 RGB = tuple[float, float, float]
@@ -40,6 +46,25 @@ RGB = tuple[float, float, float]
 #: Reconstruction filters offered to users.  Box is the default: glints are
 #: sub-pixel, a Gaussian smears them and filters with negative lobes ring.
 FILTERS = ("box", "tent", "gaussian")
+
+
+def orthonormal(matrix: np.ndarray) -> np.ndarray:
+    """``matrix`` (4×4) with its scale and shear removed, keeping rotation and translation.
+
+    The nearest rotation in the Frobenius norm (from the SVD); a mirroring
+    matrix gives the proper rotation that flips the local Z axis back.
+    """
+    matrix = np.asarray(matrix, dtype=np.float64)
+    if matrix.shape != (4, 4) or not np.all(np.isfinite(matrix)):
+        raise ValueError(f"expected a finite 4×4 matrix, got shape {matrix.shape}")
+    u, _, vt = np.linalg.svd(matrix[:3, :3])
+    rotation = u @ vt
+    if np.linalg.det(rotation) < 0:  # a mirroring matrix: keep a proper rotation
+        rotation = u @ np.diag([1.0, 1.0, -1.0]) @ vt
+    result = np.eye(4)
+    result[:3, :3] = rotation
+    result[:3, 3] = matrix[:3, 3]
+    return result
 
 
 @dataclass(frozen=True)
@@ -80,8 +105,8 @@ class Camera:
     Attributes
     ----------
     to_world:
-        Camera-to-world matrix (Blender's camera frame: looks along −Z, +Y up,
-        no scale).
+        Camera-to-world matrix (Blender's camera frame: looks along −Z, +Y up);
+        stored orthonormal (scale and shear removed).
     projection:
         ``"perspective"`` or ``"orthographic"``.
     fov_x_deg:
@@ -105,6 +130,7 @@ class Camera:
     far: float = 1000.0
 
     def __post_init__(self):
+        object.__setattr__(self, "to_world", orthonormal(self.to_world))
         if self.projection not in ("perspective", "orthographic"):
             raise ValueError(f"unknown projection {self.projection!r}")
         if not 0.0 < self.near < self.far:
@@ -177,14 +203,14 @@ class Emission:
 class ScratchedMetal:
     """A scratched surface rendered with the ``scratch_diffraction`` BSDF.
 
-    ``coherence_diameter_m`` is in metres; ``unit_scale`` is metres per scene
-    unit (maps the mesh's UV Jacobian to metres); ``material`` is a Mitsuba
+    ``coherence_diameter_m`` is in metres; ``metres_per_unit`` is metres per
+    scene unit (maps the mesh's UV Jacobian to metres; the plugin's ``unit_scale``); ``material`` is a Mitsuba
     conductor name or ``"none"`` (perfect mirror).
     """
 
     scratches: ScratchSet
     coherence_diameter_m: float
-    unit_scale: float = 1.0
+    metres_per_unit: float = 1.0
     material: str = "Al"
     coherent: bool = True
     diffuse_reflectance: Optional[RGB] = None
@@ -254,13 +280,17 @@ class SpotLight:
     """A spot shining along its local −Z; ``intensity`` (W/sr) on the axis.
 
     The intensity falls from 1 at ``beam_deg`` to 0 at ``cutoff_deg`` (angles
-    from the axis).
+    from the axis).  ``to_world`` is stored orthonormal: a spot has a position
+    and a direction, no size.
     """
 
     to_world: np.ndarray
     intensity: RGB
     cutoff_deg: float
     beam_deg: float
+
+    def __post_init__(self):
+        object.__setattr__(self, "to_world", orthonormal(self.to_world))
 
 
 @dataclass(frozen=True)

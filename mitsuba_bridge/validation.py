@@ -1,4 +1,5 @@
-"""Numerical validation in the spirit of the supplement's Fig. 15 (``python -m mitsuba_bridge validate OUT``).
+"""Numerical validation in the spirit of the supplement's Fig. 15
+(``python -m scratch_iridescence.mitsuba_bridge validate OUT``).
 
 The BRDF of one coherence area (δ_c = 30 µm, the plugin's default) over the
 whole plane of outgoing direction cosines (α, β) at normal incidence, twice:

@@ -7,6 +7,7 @@ whole process (Blender included), so it is refused here, before any kernel.
 from __future__ import annotations
 
 from . import llvm_library
+from .errors import ScratchUserError
 
 __all__ = ["SPECTRAL_VARIANTS", "VariantError", "choose_variant", "activate"]
 
@@ -14,7 +15,7 @@ __all__ = ["SPECTRAL_VARIANTS", "VariantError", "choose_variant", "activate"]
 SPECTRAL_VARIANTS = ("cuda_ad_spectral", "llvm_ad_spectral")
 
 
-class VariantError(RuntimeError):
+class VariantError(ScratchUserError, RuntimeError):
     """No usable spectral Mitsuba variant (or an unusable one was asked for)."""
 
 

@@ -11,7 +11,7 @@ __all__ = ["SCRATCH_OT_export_mitsuba"]
 
 class SCRATCH_OT_export_mitsuba(bpy.types.Operator):
     """Export the scene as a Mitsuba 3 folder (scene.xml, PLY meshes, textures, scratch files) that
-    'python -m mitsuba_bridge render FOLDER -o out.exr' renders without Blender"""
+    'python -m scratch_iridescence.mitsuba_bridge render FOLDER -o out.exr' renders without Blender"""
 
     bl_idname = "scratch.export_mitsuba"
     bl_label = "Export Mitsuba Scene"

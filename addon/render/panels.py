@@ -52,7 +52,7 @@ class SCRATCH_PT_render_sampling(_RenderPanel, bpy.types.Panel):
     def draw(self, context):
         layout = self.layout
         layout.use_property_split = True
-        settings = context.scene.scratch_render
+        settings = context.scene.scratch_iridescence
         layout.prop(settings, "samples")
         layout.prop(settings, "seed")
         layout.prop(settings, "max_depth")
@@ -64,7 +64,7 @@ class SCRATCH_PT_render_film(_RenderPanel, bpy.types.Panel):
     def draw(self, context):
         layout = self.layout
         layout.use_property_split = True
-        layout.prop(context.scene.scratch_render, "film_filter")
+        layout.prop(context.scene.scratch_iridescence, "film_filter")
         layout.prop(context.scene.render, "film_transparent", text="Transparent")
 
 
@@ -74,7 +74,7 @@ class SCRATCH_PT_render_device(_RenderPanel, bpy.types.Panel):
     def draw(self, context):
         layout = self.layout
         layout.use_property_split = True
-        layout.prop(context.scene.scratch_render, "variant")
+        layout.prop(context.scene.scratch_iridescence, "variant")
         version = mitsuba_version()
         if version is None:
             layout.label(text="Mitsuba is not installed: reinstall the extension for your platform", icon="ERROR")

@@ -1,4 +1,4 @@
-"""Render settings of a scene: ``scene.scratch_render`` (one PointerProperty on Scene)."""
+"""Render settings of a scene: ``scene.scratch_iridescence`` (one PointerProperty on Scene)."""
 from __future__ import annotations
 
 import bpy
@@ -42,9 +42,9 @@ class SCRATCH_PG_render(bpy.types.PropertyGroup):
 
 def register():
     bpy.utils.register_class(SCRATCH_PG_render)
-    bpy.types.Scene.scratch_render = bpy.props.PointerProperty(type=SCRATCH_PG_render)
+    bpy.types.Scene.scratch_iridescence = bpy.props.PointerProperty(type=SCRATCH_PG_render)
 
 
 def unregister():
-    del bpy.types.Scene.scratch_render
+    del bpy.types.Scene.scratch_iridescence
     bpy.utils.unregister_class(SCRATCH_PG_render)

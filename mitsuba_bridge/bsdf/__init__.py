@@ -1,4 +1,4 @@
-"""The wave-optical scratch BSDF ``scratch_diffraction`` for Mitsuba 3 (MODEL.md).
+"""The wave-optical scratch BSDF ``scratch_diffraction`` for Mitsuba 3 (docs/model.md).
 
 Importing this package imports neither Mitsuba nor Dr.Jit; the functions
 below do, and need an active variant (``mi.set_variant(...)``).
@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from .parameters import DEFAULT_COHERENCE_DIAMETER_M, DEFAULT_MATERIAL, PLUGIN_NAME
 
-__all__ = ["register", "plugin_dict", "scratch_parameters", "update_scratches", "PLUGIN_NAME"]
+__all__ = ["register", "plugin_dict", "load", "scratch_parameters", "update_scratches", "PLUGIN_NAME"]
 
 
 def register() -> None:
@@ -72,6 +72,20 @@ def plugin_dict(scratches=None, *, filename=None, coherence_diameter=DEFAULT_COH
     elif scratches is not None:
         result.update(scratch_parameters(scratches))
     return result
+
+
+def load(scratches=None, **settings):
+    """The ``scratch_diffraction`` BSDF itself, loaded for the active Mitsuba variant.
+
+    ``mi.load_dict(plugin_dict(scratches, **settings))`` after registering the
+    plugin for the variant: the one way code outside the bridge (the paper
+    runner's load timing, scripts) makes a scratch BSDF without a scene.
+    Parameters as :func:`plugin_dict`.
+    """
+    import mitsuba as mi
+
+    register()
+    return mi.load_dict(plugin_dict(scratches, **settings))
 
 
 def scratch_parameters(scratches) -> dict:

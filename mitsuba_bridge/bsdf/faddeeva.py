@@ -1,6 +1,6 @@
 """The Faddeeva function ``w(z) = exp(-z²) erfc(-i z)`` in the upper half plane.
 
-Finite scratch segments need a complex error function (MODEL.md §3.2); Dr.Jit
+Finite scratch segments need a complex error function (docs/model.md §3.2); Dr.Jit
 only has a real ``erf``, and ``erf`` of a complex argument overflows for large
 frequencies.  ``w`` stays bounded (|w| <= 1 for Im z >= 0) and Weideman's
 rational approximation (SIAM J. Numer. Anal. 31(5), 1994) evaluates it without
@@ -12,7 +12,7 @@ with ``p`` a polynomial of degree N - 1 whose coefficients come from an FFT of
 ``exp(-t²)(L² + t²)`` at ``t = L tan(θ/2)``.  :func:`weideman_coefficients`
 regenerates them with numpy for any N; the BSDF uses N = 12 (max. relative
 error 1.2e-5 over Re z in [-500, 500], Im z in [0, 8], below what float32
-arithmetic adds to the scratch amplitudes), MODEL.md lists N = 16 (5e-7).
+arithmetic adds to the scratch amplitudes); docs/model.md §3.2 lists N = 16 (5e-7).
 """
 from __future__ import annotations
 
@@ -35,7 +35,7 @@ def weideman_coefficients(terms: int = DEFAULT_TERMS) -> tuple[float, tuple[floa
     """``(L, coefficients)`` of Weideman's approximation with ``terms`` terms.
 
     The coefficients are in Horner order (highest power first).  For
-    ``terms = 16`` they are the ones printed in MODEL.md §3.2.
+    ``terms = 16`` they are the ones printed in docs/model.md §3.2.
     """
     m = 2 * terms
     k = np.arange(-m + 1, m)

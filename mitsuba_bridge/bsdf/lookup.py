@@ -173,7 +173,7 @@ def segment_at(grid: Grid, jac: LocalJacobian, piece, active) -> SegmentGeometry
 def _piece_geometry(grid: Grid, jac: LocalJacobian, piece, radius2, active):
     """The piece seen from x0 (local frame, µm), and whether it passes within the window radius."""
     head = dr.gather(mi.Vector4f, grid.segments, 2 * piece, active)  # a_hi, a_lo
-    tail = dr.gather(mi.Vector4f, grid.segments, 2 * piece + 1, active)  # e, W, ±D
+    tail = dr.gather(mi.Vector4f, grid.segments, 2 * piece + 1, active)  # e (UV), W (µm), ±D (µm)
     du = (head.x - jac.uv.x) + head.z
     dv = (head.y - jac.uv.y) + head.w
     ax = dr.fma(jac.j00, du, jac.j01 * dv)

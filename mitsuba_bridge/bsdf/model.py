@@ -1,4 +1,4 @@
-"""The scratch BRDF, its sampling density and its sampler on Dr.Jit arrays (MODEL.md §4, §5).
+"""The scratch BRDF, its sampling density and its sampler on Dr.Jit arrays (docs/model.md §4, §5).
 
     f_r = F |U0(ξ) + Σ_k S_k(ξ)|² / (λ² π σ²)              (coherent)
     f_r = F [|U0|² (1 - ρ) + Σ_k |S'_k|²] / (λ² π σ²)        (incoherent)

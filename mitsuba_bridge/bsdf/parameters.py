@@ -10,7 +10,7 @@ PLUGIN_NAME = "scratch_diffraction"
 #: Default coherence diameter δ_c in metres (σ = δ_c / 6 = 5 µm).  The mirror
 #: lobe's angular width is then λ / (2√2 π σ) ≈ 0.7° at 550 nm, about the sun's
 #: disc, and the paper's CD (≈ 21 tracks of 1.6 µm pitch per coherence area)
-#: implies δ_c ≈ 32 µm (MODEL.md §2).
+#: implies δ_c ≈ 32 µm (docs/model.md §2).
 DEFAULT_COHERENCE_DIAMETER_M = 30e-6
 
 DEFAULT_MATERIAL = "Al"

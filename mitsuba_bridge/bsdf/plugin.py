@@ -76,7 +76,7 @@ window plus, for every straight scratch segment within 4σ, its transform:
 the window integrated along the segment between its ends and across its
 rectangular or V-shaped cross-section, both exactly (complex error functions
 through the Faddeeva function; the window's curvature across wide or offset
-scratches included, which MODEL.md's complex-frequency form only linearises),
+scratches included, which the complex-frequency form of docs/model.md §3.3 only linearises),
 depth and width following the file's simplex noise.  f_r = F |U|² / (λ² π σ²),
 F the spectral conductor Fresnel at the half vector; coherent mode adds the
 amplitudes (interference, grating orders), incoherent mode the intensities.

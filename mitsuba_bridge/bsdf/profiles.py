@@ -1,11 +1,12 @@
-"""Windowed cross-section transforms of the scratch profiles (MODEL.md §3.1, exact form).
+"""Windowed cross-section transforms of the scratch profiles (docs/model.md §3.1, exact form).
 
 ``A(ν) = ∫ w⊥(x) (exp(iκ p(x - a⊥)) - 1) exp(-2πiνx) dx`` across a scratch whose
 centre line lies at signed distance ``a⊥`` from the shading point, with the
 window's cross factor ``w⊥(x) = exp(-x²/2σ²)``, the normalised depth profile
 ``p`` in [0, 1] on ``|x - a⊥| <= W/2`` and ``κ = k_z D``.
 
-MODEL.md §3 approximates the window across the scratch by its value and slope
+The complex-frequency form (docs/model.md §3.3) approximates the window across
+the scratch by its value and slope
 at the centre line (``e^{-a⊥²/2σ²} G(ν⊥ - i a⊥/(2πσ²))``); it drops the
 window's curvature, which costs ≈ 10 % (relative L2 of f_r) on an offset
 2 µm V-groove at σ = 2 µm and up to ≈ 30 % between grating orders
@@ -15,7 +16,7 @@ shifted frequency, :func:`.window.window_integral`: the transform is exact for
 any width, at the price of two complex error functions per piece edge.
 
 ``coherent=False`` gives the transform of ``exp(iκp)`` over the footprint
-instead (the scratch's own reflection, used by the incoherent mode, §4).
+instead (the scratch's own reflection, used by the incoherent mode, docs/model.md §4.2).
 Lengths in µm, frequencies in 1/µm; ``κ`` is real (one value per wavelength).
 """
 from __future__ import annotations

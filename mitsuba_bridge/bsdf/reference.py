@@ -1,4 +1,4 @@
-"""Brute-force wave-field reference for the scratch BSDF (MODEL.md §8.1), numpy only (scipy for sparse sums).
+"""Brute-force wave-field reference for the scratch BSDF (docs/model.md §8.1), numpy only (scipy for sparse sums).
 
 Used by the BSDF tests (``tests/bsdf``) and by the numerical validation
 (:mod:`mitsuba_bridge.validation`, the supplement's Fig. 15).
@@ -146,7 +146,7 @@ def kz_of(wo, wi, wavelength):
 
 
 # ------------------------------------------------------------------------------
-# The analytic models of MODEL.md §3 that the plugin improves on, for comparison
+# The analytic models of docs/model.md §3.3 that the plugin improves on, for comparison
 def _phi_difference(t0, t1, nu, sigma):
     """Φ(t1; ν) - Φ(t0; ν) through scipy's Faddeeva function (numpy, exact)."""
     from scipy.special import wofz
@@ -162,7 +162,7 @@ def _phi_difference(t0, t1, nu, sigma):
 
 
 def _cross_section_model(s, nu, kappa):
-    """G(ν) of MODEL.md §3.1 (ν may be complex)."""
+    """G(ν) of docs/model.md §3.1 (ν may be complex)."""
     w = s.width
     if s.profile == RECT:
         return (np.exp(1j * kappa) - 1) * w * np.sinc(w * nu)
@@ -173,8 +173,8 @@ def _cross_section_model(s, nu, kappa):
 
 
 def field_separable_model(scratches, xi, k_z, sigma, complex_shift):
-    """U(ξ) of MODEL.md §3: the window frozen across each scratch (plain, ``complex_shift=False``)
-    or linearised across it (MODEL.md's complex-frequency correction)."""
+    """U(ξ) of docs/model.md §3.3: the window frozen across each scratch (plain, ``complex_shift=False``)
+    or linearised across it (the complex-frequency correction, docs/model.md §3.3)."""
     total = 2 * np.pi * sigma ** 2 * np.exp(-2 * np.pi ** 2 * sigma ** 2 * np.sum(xi ** 2, axis=1)) + 0j
     for s in scratches:
         a, length, d, n = s.frame()

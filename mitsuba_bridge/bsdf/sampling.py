@@ -1,4 +1,4 @@
-"""Importance-sampling pieces in ξ-space (MODEL.md §5).  Units: µm and 1/µm.
+"""Importance-sampling pieces in ξ-space (docs/model.md §5).  Units: µm and 1/µm.
 
 Every sampler here comes with its density; :mod:`.model` combines them with
 one-sample MIS (balance heuristic) and maps ξ to a direction.

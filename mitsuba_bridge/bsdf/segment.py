@@ -1,4 +1,4 @@
-"""Far-field amplitude of one straight scratch segment inside the window (MODEL.md §3).
+"""Far-field amplitude of one straight scratch segment inside the window (docs/model.md §3).
 
 In the segment's frame (direction d, normal n = (-d_y, d_x)) the Gaussian window
 is a product of a factor along and a factor across the segment, so
@@ -61,7 +61,7 @@ def cross_section(segment: SegmentGeometry, nu_perp, kappa, sigma, coherent: boo
 
 
 def amplitude(segment: SegmentGeometry, xi_x, xi_y, k_z, sigma, *, coherent: bool = True) -> Cx:
-    """``S_k(ξ)`` (coherent) or ``S'_k(ξ)`` (``coherent=False``, MODEL.md §4).
+    """``S_k(ξ)`` (coherent) or ``S'_k(ξ)`` (``coherent=False``, docs/model.md §4.2).
 
     Parameters
     ----------

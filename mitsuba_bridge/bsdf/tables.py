@@ -8,7 +8,7 @@ What the BSDF kernel reads (uploaded once per scratch set):
 
   ``a = a_hi + a_lo`` is the start point in UV as a float32 pair: the kernel
   forms ``(a_hi - uv) + a_lo`` and so gets ``a - x0`` to the float32 accuracy
-  of the *difference*, not of the absolute coordinate (MODEL.md §1).
+  of the *difference*, not of the absolute coordinate (docs/model.md §1).
   ``e = b - a``.  A negative depth marks a V-groove (depth 0 never reaches the
   table).
 ``cell_start`` (nu·nv + 1,) uint32: the pieces of cell ``i = v·nu + u`` are rows
@@ -58,6 +58,10 @@ MAX_CELLS_PER_AXIS = 2048
 EXTRA_PIECES_PER_SEGMENT = 3.0
 #: ... up to this many pieces in all (32 bytes each in the kernel's table).
 MAX_PIECES = 16 * 2 ** 20
+
+#: Metres (the scratch file's unit) to micrometres (the kernels' unit, docs/model.md §1.1).
+M_TO_UM = 1e6
+
 #: Pieces in the crop the automatic cell size is chosen on.
 SEARCH_PIECES = 1 << 19
 #: Scratches (or pieces) processed at a time.
@@ -138,8 +142,9 @@ def _pieces(scratches: ScratchSet):
         segments = subdivide(chunk)
         keep = (segments.width > 0) & (segments.depth > 0) & np.any(segments.a != segments.b, axis=1)
         signed = np.where(segments.profile == Profile.TRIANGULAR, -segments.depth, segments.depth)
-        piece = (segments.a[keep], segments.b[keep], (segments.width[keep] * 1e6).astype(np.float32),
-                 (signed[keep] * 1e6).astype(np.float32))
+        width_um = (segments.width[keep] * M_TO_UM).astype(np.float32)  # the file's metres -> kernel µm
+        signed_depth_um = (signed[keep] * M_TO_UM).astype(np.float32)
+        piece = (segments.a[keep], segments.b[keep], width_um, signed_depth_um)
         del segments, keep, signed
         parts.append(_split(piece, MAX_PIECE_UV))
     if not parts:

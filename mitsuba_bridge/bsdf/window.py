@@ -1,4 +1,4 @@
-"""The Gaussian coherence window: mirror lobe and partial window integrals (MODEL.md §2, §3.2).
+"""The Gaussian coherence window: mirror lobe and partial window integrals (docs/model.md §2, §3.2).
 
 All lengths in micrometres, frequencies in 1/µm.  ``σ`` is the window's
 standard deviation (σ = δ_c / 6); the window is ``w(x) = exp(-|x - x0|² / 2σ²)``.
@@ -21,8 +21,7 @@ __all__ = ["mirror_lobe", "window_integral", "END_CLAMP_SIGMAS", "END_NEGLIGIBLE
 #: Segment end positions are clamped to ±8σ (the window is e^-32 there).
 END_CLAMP_SIGMAS = 8.0
 #: An end farther than 6σ from the foot point contributes at most e^-18 of the
-#: window's amplitude: its complex-erf term is skipped (MODEL.md §3.2 keeps the
-#: finite form for every end within 4σ).
+#: window's amplitude: its complex-erf term is skipped (docs/model.md §3.2).
 END_NEGLIGIBLE_SIGMAS = 6.0
 
 _SQRT_HALF_PI = math.sqrt(0.5 * math.pi)
@@ -38,7 +37,7 @@ def _end_term(t, nu, sigma):
     """``s g(t) w(s b/(√2σ) + i|t|/(√2σ))`` with ``s = -1`` for t >= 0, else +1.
 
     With it ``Φ(t) = σ√(π/2) [end_term(t) + 2 e^{-2π²σ²ν²} H(t)]`` for both signs
-    of ``t`` (H: unit step), which is MODEL.md's pair of Faddeeva forms.
+    of ``t`` (H: unit step), which is the pair of Faddeeva forms of docs/model.md §3.2.
     """
     sign = dr.select(t >= 0.0, -1.0, 1.0)
     inv_scale = dr.rcp(math.sqrt(2.0) * sigma)
@@ -64,7 +63,7 @@ def _skippable_end_term(t, nu, sigma):
 def window_integral(t0, t1, nu, sigma, skip_far_ends: bool = True):
     """``Φ(t1; ν) - Φ(t0; ν) = ∫_{t0}^{t1} exp(-τ²/2σ²) exp(-2πiντ) dτ`` (complex).
 
-    ``Φ(t; ν) = ∫_{-∞}^{t} exp(-τ²/2σ²) exp(-2πiντ) dτ`` (MODEL.md §3.2), for
+    ``Φ(t; ν) = ∫_{-∞}^{t} exp(-τ²/2σ²) exp(-2πiντ) dτ`` (docs/model.md §3.2), for
     ``t0 <= t1`` measured from the foot point of the shading point on the line
     of integration.  The full-line terms of both ends cancel analytically, so
     there is no cancellation when both ends lie on the same side.  With

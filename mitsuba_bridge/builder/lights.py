@@ -12,7 +12,7 @@ import numpy as np
 
 from ..scene import AreaLight, ConstantWorld, EnvironmentWorld, PointLight, SkyWorld, SpotLight, SunLight
 from .materials import rgb
-from .transform import FLIP_YZ, orthonormal, scale, to_mitsuba
+from .transform import FLIP_YZ, scale, to_mitsuba
 
 __all__ = ["light_dict", "world_dict", "ENVMAP_BASIS", "SEE_THROUGH"]
 
@@ -44,7 +44,7 @@ def light_dict(light) -> dict:
     if isinstance(light, SpotLight):
         cutoff = float(np.clip(light.cutoff_deg, 1e-3, 90.0))
         beam = float(np.clip(light.beam_deg, 0.0, cutoff * (1 - 1e-4)))  # Mitsuba needs beam < cutoff
-        return {"type": "spot", "to_world": to_mitsuba(orthonormal(light.to_world) @ FLIP_YZ),
+        return {"type": "spot", "to_world": to_mitsuba(np.asarray(light.to_world) @ FLIP_YZ),
                 "intensity": rgb(light.intensity), "cutoff_angle": cutoff, "beam_width": beam}
     if isinstance(light, SunLight):
         return {"type": "directional", "direction": [float(c) for c in light.direction],

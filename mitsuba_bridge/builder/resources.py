@@ -204,7 +204,7 @@ class ToFolder:
 
 
 def _scratch_settings(material: ScratchedMetal) -> dict:
-    settings = dict(coherence_diameter=material.coherence_diameter_m, unit_scale=material.unit_scale,
+    settings = dict(coherence_diameter=material.coherence_diameter_m, unit_scale=material.metres_per_unit,
                     material=material.material, coherent=material.coherent)
     if material.diffuse_reflectance is not None and any(c > 0 for c in material.diffuse_reflectance):
         settings["diffuse_reflectance"] = {"type": "rgb", "value": [float(c) for c in material.diffuse_reflectance]}

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["FLIP_YZ", "FLIP_XZ", "scale", "translate", "to_mitsuba", "orthonormal"]
+__all__ = ["FLIP_YZ", "FLIP_XZ", "scale", "translate", "to_mitsuba"]
 
 #: Rotation by 180° about X: maps a frame looking along −Z to one looking along +Z
 #: (Blender's lights shine along −Z, Mitsuba's along +Z).
@@ -21,19 +21,6 @@ def translate(x: float, y: float, z: float) -> np.ndarray:
     matrix = np.eye(4)
     matrix[:3, 3] = (x, y, z)
     return matrix
-
-
-def orthonormal(matrix: np.ndarray) -> np.ndarray:
-    """``matrix`` with its scale (and shear) removed, keeping rotation and translation."""
-    matrix = np.asarray(matrix, dtype=np.float64)
-    u, _, vt = np.linalg.svd(matrix[:3, :3])
-    rotation = u @ vt
-    if np.linalg.det(rotation) < 0:  # a mirroring matrix: keep a proper rotation
-        rotation = u @ np.diag([1.0, 1.0, -1.0]) @ vt
-    result = np.eye(4)
-    result[:3, :3] = rotation
-    result[:3, 3] = matrix[:3, 3]
-    return result
 
 
 def to_mitsuba(matrix: np.ndarray):

@@ -1,4 +1,4 @@
-"""Distributions of per-scratch parameters, in the paper's notation (MODEL.md §7).
+"""Distributions of per-scratch parameters, in the paper's notation (docs/model.md §7).
 
 ``U[lower, upper]`` is :class:`Uniform`, ``G[mean, std]`` is :class:`Gaussian`,
 a fixed value is :class:`Constant`.  Widths and depths must be positive, so a
@@ -16,6 +16,8 @@ from typing import Union
 
 import numpy as np
 
+from ..errors import ParameterError
+
 __all__ = ["Uniform", "Gaussian", "Constant", "Distribution", "parse_distribution"]
 
 # Refuse distributions whose probability of a positive draw is below this.
@@ -31,11 +33,11 @@ class Uniform:
 
     def __post_init__(self):
         if not (math.isfinite(self.lower) and math.isfinite(self.upper)):
-            raise ValueError(f"U[{self.lower}, {self.upper}]: bounds must be finite")
+            raise ParameterError(f"U[{self.lower}, {self.upper}]: bounds must be finite")
         if self.upper < self.lower:
-            raise ValueError(f"U[{self.lower}, {self.upper}]: upper bound below lower bound")
+            raise ParameterError(f"U[{self.lower}, {self.upper}]: upper bound below lower bound")
         if self.upper <= 0 or (self.upper - max(self.lower, 0.0)) < _MIN_ACCEPTANCE * (self.upper - self.lower):
-            raise ValueError(f"U[{self.lower}, {self.upper}]: (almost) no positive values to draw")
+            raise ParameterError(f"U[{self.lower}, {self.upper}]: (almost) no positive values to draw")
 
     def sample(self, rng: np.random.Generator, size: int) -> np.ndarray:
         """``size`` positive float64 draws."""
@@ -61,11 +63,11 @@ class Gaussian:
 
     def __post_init__(self):
         if not (math.isfinite(self.mean) and math.isfinite(self.std)) or self.std < 0:
-            raise ValueError(f"G[{self.mean}, {self.std}]: needs a finite mean and std >= 0")
+            raise ParameterError(f"G[{self.mean}, {self.std}]: needs a finite mean and std >= 0")
         if self.std == 0 and self.mean <= 0:
-            raise ValueError(f"G[{self.mean}, {self.std}]: never positive")
+            raise ParameterError(f"G[{self.mean}, {self.std}]: never positive")
         if self.std > 0 and 0.5 * math.erfc(-self.mean / (self.std * math.sqrt(2))) < _MIN_ACCEPTANCE:
-            raise ValueError(f"G[{self.mean}, {self.std}]: (almost) no positive values to draw")
+            raise ParameterError(f"G[{self.mean}, {self.std}]: (almost) no positive values to draw")
 
     def sample(self, rng: np.random.Generator, size: int) -> np.ndarray:
         """``size`` positive float64 draws."""
@@ -85,7 +87,7 @@ class Constant:
 
     def __post_init__(self):
         if not (math.isfinite(self.value) and self.value > 0):
-            raise ValueError(f"constant {self.value}: must be finite and > 0")
+            raise ParameterError(f"constant {self.value}: must be finite and > 0")
 
     def sample(self, rng: np.random.Generator, size: int) -> np.ndarray:
         """``size`` copies of the value (consumes no random numbers)."""
@@ -109,7 +111,7 @@ def parse_distribution(text: str, unit: str = "m") -> Distribution:
     Numbers are scaled by decimal exponent, so ``"250"`` nm is exactly ``250e-9``.
     """
     if unit not in _UNIT_EXPONENTS:
-        raise ValueError(f"unknown unit {unit!r}; use one of {sorted(_UNIT_EXPONENTS)}")
+        raise ParameterError(f"unknown unit {unit!r}; use one of {sorted(_UNIT_EXPONENTS)}")
     exponent = _UNIT_EXPONENTS[unit]
 
     def metres(number: str) -> float:
@@ -122,7 +124,7 @@ def parse_distribution(text: str, unit: str = "m") -> Distribution:
             return Uniform(a, b) if text[0].upper() == "U" else Gaussian(a, b)
         return Constant(metres(text))
     except ValueError as error:
-        raise ValueError(f"cannot read distribution {text!r}: {error}") from None
+        raise ParameterError(f"cannot read distribution {text!r}: {error}") from None
 
 
 def _redraw_nonpositive(draw, size: int) -> np.ndarray:

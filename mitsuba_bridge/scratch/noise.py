@@ -1,4 +1,4 @@
-"""1-D simplex noise and the variation of width and depth along a scratch (MODEL.md §7).
+"""1-D simplex noise and the variation of width and depth along a scratch (docs/model.md §7).
 
 The supplement varies width and depth with "a simplex-noise function with 255
 gradients, such that a frequency of 1/255 corresponds to exactly one oscillation

@@ -2,10 +2,12 @@
 
 A scratch is a polyline in the object's UV space with a mean width and depth in
 metres, a cross-section profile and a noise variation of width and depth along
-its length (MODEL.md §7).  Scratch ``i`` owns the vertices
+its length (docs/model.md §7).  Scratch ``i`` owns the vertices
 ``uv[offsets[i]:offsets[i + 1]]``; there is never a Python object per scratch.
 """
 from __future__ import annotations
+
+from ..errors import ScratchUserError
 
 import enum
 from dataclasses import dataclass, fields
@@ -29,7 +31,7 @@ class Profile(enum.IntEnum):
     TRIANGULAR = 1  #: V-groove, deepest on the centre line
 
 
-class ScratchFormatError(ValueError):
+class ScratchFormatError(ScratchUserError, ValueError):
     """A scratch set or scratch file breaks format v1.
 
     Parameters
@@ -87,7 +89,7 @@ class ScratchSet:
     width_variation, depth_variation : (S, 2) float64
         (relative amplitude >= 0, frequency >= 0) of the simplex-noise variation;
         amplitude 0 means constant.  Frequency 1/255 is one oscillation along
-        the whole scratch (MODEL.md §7).
+        the whole scratch (docs/model.md §7).
     seed : (S,) uint32
         Per-scratch noise seed.
 

@@ -1,6 +1,6 @@
 """Subdivision of a scratch set into straight segments with constant width and depth.
 
-The diffraction model (MODEL.md §3) treats one straight segment of constant
+The diffraction model (docs/model.md §3) treats one straight segment of constant
 cross-section at a time.  :func:`subdivide` splits every polyline edge so that
 
 * no piece is longer than ``max_length`` (UV units), and

@@ -1,17 +1,15 @@
 """Headless Blender fixtures: the add-on registered once, a fresh empty file per test.
 
-Add-on tests import the bridge as ``scratch_iridescence.mitsuba_bridge``, the
-add-on's own copy: the top-level ``mitsuba_bridge`` is the same code loaded as a
-different module, so its ``ScratchSet`` is a different class.
+Blender is imported by the fixtures, not here, so that ``tests/addon/geometry/``
+(Blender-free helpers) runs where ``bpy`` is missing; the Blender tests skip.
 """
 import pytest
-
-bpy = pytest.importorskip("bpy")
 
 
 @pytest.fixture(scope="session")
 def addon():
     """The extension package, registered for the whole session."""
+    pytest.importorskip("bpy")
     import scratch_iridescence
 
     scratch_iridescence.register()
@@ -22,6 +20,8 @@ def addon():
 @pytest.fixture
 def empty_scene(addon):
     """Factory settings with no objects (registered classes survive the reset)."""
+    import bpy
+
     bpy.ops.wm.read_factory_settings(use_empty=True)
     return bpy.context.scene
 
@@ -29,6 +29,8 @@ def empty_scene(addon):
 @pytest.fixture
 def plane(empty_scene):
     """A 2 m plane with the default UV map, active and selected."""
+    import bpy
+
     bpy.ops.mesh.primitive_plane_add(size=2.0)
     return bpy.context.active_object
 
@@ -36,6 +38,8 @@ def plane(empty_scene):
 @pytest.fixture
 def cube(empty_scene):
     """Blender's default cube (2 m, UV unwrapped as a cross with seams), active and selected."""
+    import bpy
+
     bpy.ops.mesh.primitive_cube_add(size=2.0)
     return bpy.context.active_object
 

@@ -11,7 +11,7 @@ def setup_render(scene, width=32, height=24, samples=4, engine=ENGINE):
     scene.render.engine = engine
     scene.render.resolution_x, scene.render.resolution_y = width, height
     scene.render.resolution_percentage = 100
-    scene.scratch_render.samples = samples
+    scene.scratch_iridescence.samples = samples
     scene.view_settings.view_transform = "Standard"
     scene.render.image_settings.file_format = "OPEN_EXR"
     scene.render.image_settings.color_depth = "32"
@@ -89,7 +89,7 @@ def add_light(scene, kind, location=(0, 0, 2), rotation=(0, 0, 0), **data):
 
 def set_world(scene, colour=(0, 0, 0), strength=1.0):
     """A uniform world (the paper scenes' staging helper)."""
-    from scratch_iridescence.addon.scenes import staging
+    from scratch_iridescence.scenes import staging
 
     return staging.constant_world(scene, colour, strength=strength)
 

@@ -48,7 +48,7 @@ def saved_shot(empty_scene, tmp_path):
     scene = empty_scene
     scene.render.resolution_x, scene.render.resolution_y = 32, 24
     scene.render.resolution_percentage = 100
-    scene.scratch_render.samples = 4
+    scene.scratch_iridescence.samples = 4
     scene.view_settings.view_transform = "Standard"
     add_camera(scene, location=(0, 0, 5))
     add_plane(scene, size=6, mat=material("Grey", Color=(0.2, 0.2, 0.2, 1)))

@@ -26,7 +26,7 @@ bpy.ops.wm.read_factory_settings(use_empty=False)  # the default cube, camera an
 scene = bpy.context.scene
 scene.render.engine = "MITSUBA_SCRATCH"
 scene.render.resolution_x, scene.render.resolution_y = 32, 24
-scene.scratch_render.samples = 4
+scene.scratch_iridescence.samples = 4
 scene.render.filepath = output
 try:
     bpy.ops.render.render(write_still=True)

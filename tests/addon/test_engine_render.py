@@ -118,7 +118,7 @@ def test_camera_kinds_and_sensor_fits_match_blenders_projection(empty_scene, tmp
 @pytest.mark.parametrize("crop", [False, True])
 def test_border_render_matches_the_same_region_of_a_full_render(lit, tmp_path, crop):
     add_plane(lit, size=0.8, location=(0.5, 0.3, 0.01), mat=emission(strength=3.0))
-    lit.scratch_render.samples = 16
+    lit.scratch_iridescence.samples = 16
     full = render_to(lit, tmp_path / "full.exr")
     render = lit.render
     render.use_border, render.use_crop_to_border = True, crop
@@ -165,12 +165,12 @@ def test_animation_renders_every_frame(lit, tmp_path):
 
 def test_progress_reaches_one_and_cancel_stops_within_a_pass(recording, lit, tmp_path):
     lit.render.engine = RecordingEngine.bl_idname
-    lit.scratch_render.samples = 64
+    lit.scratch_iridescence.samples = 64
     render_to(lit, tmp_path / "done.exr")
     assert recording.progress[-1] == 1.0 and len(recording.progress) >= 2
     recording.progress.clear()
     recording.cancel_after = 1
-    lit.scratch_render.samples = 100_000
+    lit.scratch_iridescence.samples = 100_000
     image = render_to(lit, tmp_path / "cancelled.exr")
     assert len(recording.progress) == 1 and recording.progress[0] < 0.01  # stopped after the first pass
     assert image[..., :3].mean() > 0.1  # what was rendered is kept, as Cycles does
@@ -233,7 +233,7 @@ bpy.ops.wm.read_factory_settings(use_empty=False)
 scene = bpy.context.scene
 scene.render.engine = 'MITSUBA_SCRATCH'
 scene.render.resolution_x, scene.render.resolution_y = 32, 24
-scene.scratch_render.samples = {samples}
+scene.scratch_iridescence.samples = {samples}
 scene.render.filepath = {output!r}
 {setup}
 try:
@@ -298,7 +298,7 @@ def test_asking_for_a_missing_gpu_is_a_clear_error(lit, tmp_path):
 
     if drjit.has_backend(drjit.JitBackend.CUDA):
         pytest.skip("this machine has a CUDA device")
-    lit.scratch_render.variant = "cuda_ad_spectral"
+    lit.scratch_iridescence.variant = "cuda_ad_spectral"
     lit.render.filepath = str(tmp_path / "gpu.exr")
     with pytest.raises(RuntimeError, match="NVIDIA GPU"):
         bpy.ops.render.render(write_still=True)

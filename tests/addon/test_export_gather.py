@@ -318,16 +318,16 @@ def test_scratched_object_carries_its_scratches_and_settings(staged):
     staged.unit_settings.scale_length = 0.01  # one Blender unit is a centimetre
     plane = add_plane(staged, mat=material("Under"))
     storage.write_scratches(plane, plate_scratches())
-    plane.scratch.base_material = "Au"
-    plane.scratch.coherence_diameter = 0.004  # 40 µm in centimetres
-    plane.scratch.coherent = False
-    plane.scratch.diffuse_reflectance = (0.1, 0.0, 0.0)
+    plane.scratch_iridescence.base_material = "Au"
+    plane.scratch_iridescence.coherence_diameter_um = 40.0  # physical: the centimetre scene unit does not matter
+    plane.scratch_iridescence.coherent = False
+    plane.scratch_iridescence.diffuse_reflectance = (0.1, 0.0, 0.0)
     description = gather(staged)
     (shape,) = description.shapes
     metal = description.materials[shape.material]
     assert isinstance(metal, S.ScratchedMetal)
     assert metal.scratches == plate_scratches()
-    assert metal.material == "Au" and metal.coherent is False and metal.unit_scale == pytest.approx(0.01)
+    assert metal.material == "Au" and metal.coherent is False and metal.metres_per_unit == pytest.approx(0.01)
     assert metal.coherence_diameter_m == pytest.approx(40e-6)
     assert metal.diffuse_reflectance == pytest.approx((0.1, 0.0, 0.0))
 

@@ -32,10 +32,11 @@ def test_export_writes_a_self_contained_folder(striped_scene, tmp_path):
 
 
 def test_command_line_render_of_the_export_matches_the_engine(striped_scene, tmp_path):
-    striped_scene.scratch_render.samples = 128
+    striped_scene.scratch_iridescence.samples = 128
     engine_image = render_to(striped_scene, tmp_path / "engine.exr")
     bpy.ops.scratch.export_mitsuba(directory=str(tmp_path / "scene"))
-    result = subprocess.run([sys.executable, "-m", "mitsuba_bridge", "render", str(tmp_path / "scene"),
+    cli = [sys.executable, "-m", "scratch_iridescence.mitsuba_bridge"]
+    result = subprocess.run([*cli, "render", str(tmp_path / "scene"),
                              "-o", str(tmp_path / "cli.exr")], capture_output=True, text=True, cwd=ROOT)
     assert result.returncode == 0, result.stderr
     cli_image = read_exr(tmp_path / "cli.exr")

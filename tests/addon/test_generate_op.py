@@ -6,7 +6,7 @@ from scipy import stats
 bpy = pytest.importorskip("bpy")
 from scratch_iridescence.addon import storage  # noqa: E402
 from scratch_iridescence.addon.mesh import world_surface  # noqa: E402
-from scratch_iridescence.addon.uvmap import UVLocator  # noqa: E402
+from scratch_iridescence.addon.geometry.uvmap import UVLocator  # noqa: E402
 
 P_MIN = 1e-3
 
@@ -216,7 +216,7 @@ def test14_count_beyond_memory(scratched_plane):
 
 
 def test14b_running_out_of_memory_midway(scratched_plane, monkeypatch):
-    import scratch_iridescence.addon.generate as generate_module
+    import scratch_iridescence.addon.operators.generate as generate_module
 
     def exhausted(*_args, **_kwargs):
         raise MemoryError()
@@ -264,7 +264,7 @@ def test17_the_evaluated_mesh_is_scratched(plane):
 @pytest.mark.slow
 def test18_the_dining_table_scale(plane, tmp_path):
     # The paper's dining table: 300 000 scratches, stored, reloaded and drawn.
-    from scratch_iridescence.addon.overlay import overlay_data
+    from scratch_iridescence.addon.ui.overlay import overlay_data
 
     assert generate(count=300_000, length_min=0.005, length_max=0.03) == {"FINISHED"}
     data = storage.raw_scratch_bytes(plane)

@@ -6,7 +6,7 @@ bpy = pytest.importorskip("bpy")
 from conftest import stroke  # noqa: E402
 from scratch_iridescence.addon import storage  # noqa: E402
 from scratch_iridescence.addon.mesh import world_surface  # noqa: E402
-from scratch_iridescence.addon.uvmap import UVLocator  # noqa: E402
+from scratch_iridescence.addon.geometry.uvmap import UVLocator  # noqa: E402
 from scratch_iridescence.mitsuba_bridge.scratch import ScratchSet  # noqa: E402
 
 

@@ -1,4 +1,4 @@
-"""The paper's scenes (``addon/scenes/fig*.py``): each builds at a small scale with the requested scratches,
+"""The paper's scenes (``scenes/fig*.py``): each builds at a small scale with the requested scratches,
 through the add-on's operators; tiny renders show the effects the figures are about."""
 import inspect
 
@@ -10,7 +10,7 @@ from render_scenes import render_to, setup_render  # noqa: E402
 from scipy import stats  # noqa: E402
 
 from scratch_iridescence.addon import storage  # noqa: E402
-from scratch_iridescence.addon.scenes import (fig01_table, fig06_cd, fig07_plate, fig09_grating,  # noqa: E402
+from scratch_iridescence.scenes import (fig01_table, fig06_cd, fig07_plate, fig09_grating,  # noqa: E402
                                               fig10_base, fig17_profile, paper)
 from scratch_iridescence.mitsuba_bridge import scratch  # noqa: E402
 
@@ -27,7 +27,7 @@ def lengths_m(scratches, metres_per_uv):
 
 def assert_ready_to_render(scene):
     assert scene.render.engine == "MITSUBA_SCRATCH" and scene.camera is not None
-    assert scene.scratch_render.film_filter == "box"
+    assert scene.scratch_iridescence.film_filter == "box"
     assert any(obj.type == "LIGHT" for obj in scene.objects) or scene.world is not None
 
 
@@ -54,7 +54,7 @@ def test01_every_figure_has_renders_its_builder_accepts_and_the_papers_times():
         for render in figure.renders:
             assert set(render.options) <= set(parameters), (figure.key, render.name)
             assert render.paper_minutes > 0 and render.samples > 0
-    # MODEL.md §10: Fig. 7(b) is 1 MP × 16 384 spp in 15 min on 72 cores, about 2.5e5 samples per core-second.
+    # docs/model.md §10: Fig. 7(b) is 1 MP × 16 384 spp in 15 min on 72 cores, about 2.5e5 samples per core-second.
     assert fig07_plate.FIGURE.renders[0].paper_samples_per_core_second == pytest.approx(2.53e5, rel=0.01)
 
 
@@ -92,7 +92,7 @@ def test04_fig10_base_is_specular_or_diffuse_with_the_same_scratches(empty_scene
     fig10_base.build_scene(empty_scene, diffuse=diffuse, count=100, **TINY)
     plate = bpy.data.objects["Scratched plate"]
     expected = fig10_base.DIFFUSE_REFLECTANCE if diffuse else (0.0, 0.0, 0.0)
-    assert tuple(plate.scratch.diffuse_reflectance) == pytest.approx(expected)
+    assert tuple(plate.scratch_iridescence.diffuse_reflectance) == pytest.approx(expected)
     s = storage.read_scratches(plate)
     assert s.count == 100
     np.testing.assert_allclose(s.width, 1e-6)
@@ -114,14 +114,14 @@ def test05_fig09_grooves_are_parallel_at_the_grating_pitch(empty_scene):
         np.testing.assert_allclose(np.diff(band), fig09_grating.PITCH_M, atol=20e-9)
     np.testing.assert_allclose(grooves.width, 1e-6)
     np.testing.assert_allclose(grooves.depth, 1e-6)
-    assert bpy.data.objects["Grated plate"].scratch.coherent
+    assert bpy.data.objects["Grated plate"].scratch_iridescence.coherent
 
 
 def test06_fig06_cd_tracks_are_concentric_at_the_track_pitch(empty_scene, tmp_path):
     disc = fig06_cd.build_scene(empty_scene, coherent=False, track_radii_m=(0.040, 0.0404), workdir=tmp_path,
                                 **TINY)
     tracks = storage.read_scratches(disc)
-    assert tracks.count == 250 and not disc.scratch.coherent
+    assert tracks.count == 250 and not disc.scratch_iridescence.coherent
     assert np.all(tracks.vertex_counts == fig06_cd.CHORDS_PER_TRACK + 1)
     polylines = tracks.uv.reshape(tracks.count, -1, 2)
     np.testing.assert_array_equal(polylines[:, 0], polylines[:, -1])  # closed
@@ -159,7 +159,7 @@ def test07_fig01_table_mixes_painted_wear_with_generated_uniform_scratches(empty
 def test08_coherent_grating_bands_take_different_colours_incoherent_ones_do_not(empty_scene, tmp_path):
     plate = fig09_grating.build_scene(empty_scene, coherent=True, **TINY)
     coherent = render(empty_scene, tmp_path / "coherent.exr", (144, 90), 32)
-    plate.scratch.coherent = False
+    plate.scratch_iridescence.coherent = False
     incoherent = render(empty_scene, tmp_path / "incoherent.exr", (144, 90), 32)
     assert np.all(np.isfinite(coherent)) and np.all(np.isfinite(incoherent))
     assert colour_spread(coherent) > 0.3 > 0.15 > colour_spread(incoherent)
@@ -168,7 +168,7 @@ def test08_coherent_grating_bands_take_different_colours_incoherent_ones_do_not(
 def test09_coherent_cd_shows_rainbow_orders_that_vanish_incoherently(empty_scene, tmp_path):
     disc = fig06_cd.build_scene(empty_scene, coherent=True, track_radii_m=(0.030, 0.052), workdir=tmp_path, **TINY)
     coherent = render(empty_scene, tmp_path / "coherent.exr", (96, 72), 16)
-    disc.scratch.coherent = False
+    disc.scratch_iridescence.coherent = False
     incoherent = render(empty_scene, tmp_path / "incoherent.exr", (96, 72), 16)
     # Pure spectral colours lie outside sRGB, so single channels of the linear image may be negative; the
     # luminance (CIE Y, a non-negative matching function) may not.
@@ -181,7 +181,7 @@ def test09_coherent_cd_shows_rainbow_orders_that_vanish_incoherently(empty_scene
 def test10_paper_runner_builds_renders_and_writes_the_pages(tmp_path):
     """``make paper`` in miniature: the grated plate at 5 % resolution, built and rendered by fresh worker
     processes; the pictures, the statistics and both pages read back."""
-    from scratch_iridescence.addon.scenes import pages
+    from scratch_iridescence.scenes import pages
     from scratch_iridescence.mitsuba_bridge.exr import read_exr
 
     output, docs = tmp_path / "out", tmp_path / "docs"

@@ -13,7 +13,7 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 def run_demo(output, *extra):
-    result = subprocess.run([sys.executable, "-m", "scratch_iridescence.addon.scenes.demo", "--output", str(output),
+    result = subprocess.run([sys.executable, "-m", "scratch_iridescence.scenes.demo", "--output", str(output),
                              "--resolution", "120", "75", "--samples", "16", *extra],
                             capture_output=True, text=True, cwd=ROOT, timeout=600)
     assert result.returncode == 0, result.stdout + result.stderr

@@ -1,4 +1,5 @@
-"""The built Linux extension zip installs into a sandboxed Blender user folder, enables and renders.
+"""The built Linux extension zip: what it holds, and that it installs into a sandboxed Blender user
+folder, enables and renders.
 
 Where a libLLVM 15 exists, the sandbox's system LLVM is that one (LD_LIBRARY_PATH): the render
 must then use the libLLVM the zip bundles.
@@ -9,6 +10,7 @@ build downloads about 300 MB of wheels into ``wheels/``).
 import subprocess
 import sys
 import tomllib
+import zipfile
 from pathlib import Path
 
 import pytest
@@ -44,7 +46,7 @@ print("ENGINE", engine.__module__)
 scene = bpy.context.scene
 scene.render.engine = "MITSUBA_SCRATCH"
 scene.render.resolution_x, scene.render.resolution_y = 32, 24
-scene.scratch_render.samples = 4
+scene.scratch_iridescence.samples = 4
 scene.render.image_settings.file_format = "PNG"
 scene.render.filepath = output
 bpy.ops.render.render(write_still=True)
@@ -54,8 +56,16 @@ print("LLVM", drjit.detail.llvm_version(), os.environ.get("DRJIT_LIBLLVM_PATH"))
 """
 
 
-def linux_zip(output: Path) -> Path:
+#: Tracked files that users do not run: the scenes (demo, paper harness) and the numerical validation
+#: with its brute-force reference and probe (blender_manifest.toml, [build] paths_exclude_pattern).
+NOT_SHIPPED = ("scenes/", "mitsuba_bridge/validation.py", "mitsuba_bridge/bsdf/reference.py",
+               "mitsuba_bridge/bsdf/probe.py", "tests/", "docs/", ".ci/", "Makefile", "pyproject.toml", ".gitignore")
+
+
+@pytest.fixture(scope="module")
+def linux_zip(tmp_path_factory) -> Path:
     """Build the zips from the current tree (wheels are downloaded once into wheels/, then reused)."""
+    output = tmp_path_factory.mktemp("dist")
     subprocess.run([sys.executable, str(ROOT / ".ci" / "build_extension.py"), "--output-dir", str(output)],
                    check=True, cwd=ROOT)
     manifest = tomllib.loads((ROOT / "blender_manifest.toml").read_text())
@@ -63,9 +73,24 @@ def linux_zip(output: Path) -> Path:
 
 
 @pytest.mark.slow
+def test_zip_holds_the_addon_and_the_bridge_but_not_the_paper_harness(linux_zip):
+    names = set(zipfile.ZipFile(linux_zip).namelist())
+    tracked = subprocess.run(["git", "ls-files"], capture_output=True, text=True, cwd=ROOT, check=True).stdout.split()
+    shipped = {path for path in tracked if not path.startswith(NOT_SHIPPED)}
+    assert "addon/geometry/surface.py" in shipped and "mitsuba_bridge/bsdf/model.py" in shipped
+    assert shipped <= names, sorted(shipped - names)
+    leaked = sorted(name for name in names if name.startswith(NOT_SHIPPED))
+    assert not leaked, leaked
+    code = {name for name in names if not name.startswith("wheels/")}
+    assert code == shipped, sorted(code ^ shipped)  # nothing untracked (caches, egg-info, outputs) either
+    assert {name.split("-")[0] for name in names if name.startswith("wheels/")} == \
+        {"wheels/mitsuba", "wheels/drjit", "wheels/openexr", "wheels/karellen_llvm_core"}
+
+
+@pytest.mark.slow
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="installs the Linux x64 zip")
-def test_linux_zip_installs_enables_and_renders_with_its_own_wheels(tmp_path, llvm15_or_none):
-    zip_path = linux_zip(tmp_path / "dist")
+def test_linux_zip_installs_enables_and_renders_with_its_own_wheels(linux_zip, tmp_path, llvm15_or_none):
+    zip_path = linux_zip
     sandbox = tmp_path / "blender-user"
     output = tmp_path / "frame.png"
     env = {"BLENDER_USER_RESOURCES": str(sandbox), "PATH": "/usr/bin:/bin", "HOME": str(tmp_path),

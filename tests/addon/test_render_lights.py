@@ -31,7 +31,7 @@ def floor_radiance(engine, build, tmp_path, camera_x=0.0):
     if engine == "CYCLES":
         scene.cycles.samples, scene.cycles.use_denoising, scene.cycles.max_bounces = 512, False, 0
     else:
-        scene.scratch_render.max_depth = 2  # direct lighting only, as Cycles with no bounces
+        scene.scratch_iridescence.max_depth = 2  # direct lighting only, as Cycles with no bounces
     add_camera(scene, location=(camera_x, 0, 1.5), type="ORTHO", ortho_scale=0.1)
     add_plane(scene, size=20, mat=material("Grey", Color=(0.5, 0.5, 0.5, 1)))
     set_world(scene)

@@ -85,5 +85,41 @@ def test_damaged_bytes_raise_a_clear_error(plane):
 
 def test_object_settings_have_the_bsdf_defaults(plane):
     from scratch_iridescence.mitsuba_bridge.bsdf.parameters import DEFAULT_COHERENCE_DIAMETER_M
-    assert plane.scratch.coherence_diameter == pytest.approx(DEFAULT_COHERENCE_DIAMETER_M)
-    assert plane.scratch.base_material == "Al" and plane.scratch.coherent
+    assert plane.scratch_iridescence.coherence_diameter_um == pytest.approx(DEFAULT_COHERENCE_DIAMETER_M * 1e6)
+    assert plane.scratch_iridescence.base_material == "Al" and plane.scratch_iridescence.coherent
+
+
+def test_a_file_of_version_0_1_loads_with_the_same_settings(plane, tmp_path):
+    # Version 0.1 registered Object.scratch (coherence diameter in scene units) and
+    # Scene.scratch_iridescence; a saved file holds them as these ID property groups.
+    scene = bpy.context.scene
+    scene.unit_settings.scale_length = 0.01  # a centimetre scene: 0.004 units = 40 µm
+    gold = [item.identifier for item in plane.scratch_iridescence.bl_rna.properties["base_material"].enum_items]
+    plane["scratch"] = {"coherence_diameter": 0.004, "coherent": 0, "base_material": gold.index("Au"),
+                        "diffuse_reflectance": [0.1, 0.2, 0.3], "overlay_color_by": 1}
+    scene["scratch_iridescence"] = {"samples": 7, "max_depth": 3}
+    path = tmp_path / "old.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.ops.wm.open_mainfile(filepath=str(path))
+    plane, scene = bpy.data.objects["Plane"], bpy.context.scene
+    settings = plane.scratch_iridescence
+    assert settings.coherence_diameter_um == pytest.approx(40.0)
+    assert settings.base_material == "Au" and not settings.coherent and settings.overlay_color_by == "WIDTH"
+    assert tuple(settings.diffuse_reflectance) == pytest.approx((0.1, 0.2, 0.3))
+    assert scene.scratch_iridescence.samples == 7 and scene.scratch_iridescence.max_depth == 3
+    assert "scratch" not in plane and "scratch_iridescence" not in scene
+    # Saved again, it is a current file: nothing left to upgrade.
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    bpy.ops.wm.open_mainfile(filepath=str(path))
+    assert bpy.data.objects["Plane"].scratch_iridescence.coherence_diameter_um == pytest.approx(40.0)
+
+
+def test_enabling_the_addon_upgrades_the_open_file(plane):
+    from scratch_iridescence.addon import versioning
+
+    plane["scratch"] = {"coherence_diameter": 5e-5, "show_overlay": 0}  # metres: scale_length 1
+    versioning.register()  # as when the add-on is enabled in the preferences with this file open
+    assert plane.scratch_iridescence.coherence_diameter_um == pytest.approx(50.0)
+    assert not plane.scratch_iridescence.show_overlay and "scratch" not in plane
+    assert bpy.app.handlers.load_post.count(versioning._on_load) == 1

@@ -15,7 +15,7 @@ bpy = pytest.importorskip("bpy")
 from conftest import stroke  # noqa: E402
 from render_scenes import add_camera, add_light, setup_render  # noqa: E402
 from scratch_iridescence.addon import storage  # noqa: E402
-from scratch_iridescence.addon.overlay import overlay_data, overlay_error  # noqa: E402
+from scratch_iridescence.addon.ui.overlay import overlay_data, overlay_error  # noqa: E402
 from scratch_iridescence.addon.render.gather import GatherError, gather_scene  # noqa: E402
 from scratch_iridescence.mitsuba_bridge import scratch  # noqa: E402
 

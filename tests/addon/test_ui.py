@@ -10,12 +10,12 @@ import pytest
 
 bpy = pytest.importorskip("bpy")
 from conftest import stroke  # noqa: E402
-from scratch_iridescence.addon import overlay, panels  # noqa: E402
-from scratch_iridescence.addon.files import SCRATCH_OT_export_file, SCRATCH_OT_import_file  # noqa: E402
-from scratch_iridescence.addon.generate import SCRATCH_OT_generate  # noqa: E402
-from scratch_iridescence.addon.paint import (SCRATCH_OT_erase_stroke, SCRATCH_OT_paint_stroke,  # noqa: E402
+from scratch_iridescence.addon.ui import overlay, panels  # noqa: E402
+from scratch_iridescence.addon.operators.files import SCRATCH_OT_export_file, SCRATCH_OT_import_file  # noqa: E402
+from scratch_iridescence.addon.operators.generate import SCRATCH_OT_generate  # noqa: E402
+from scratch_iridescence.addon.tools.paint import (SCRATCH_OT_erase_stroke, SCRATCH_OT_paint_stroke,  # noqa: E402
                                              SCRATCH_PT_brush_scratches, SCRATCH_TOOL_brush, SCRATCH_TOOL_eraser)
-from scratch_iridescence.addon.stroke import StrokeOperator  # noqa: E402
+from scratch_iridescence.addon.tools.stroke import StrokeOperator  # noqa: E402
 
 
 class Layout:
@@ -118,7 +118,7 @@ def test06_object_panel_shows_count_summary_buttons_and_settings(scratched_plane
     assert {"scratch.generate", "scratch.clear", "scratch.import_file", "scratch.export_file"} <= set(layout.shown)
     layout = Layout()
     panels.SCRATCH_PT_scratch_render.draw(SimpleNamespace(layout=layout), context)
-    assert layout.shown == ["base_material", "coherence_diameter", "coherent", "diffuse_reflectance"]
+    assert layout.shown == ["base_material", "coherence_diameter_um", "coherent", "diffuse_reflectance"]
     layout = Layout()
     panels.SCRATCH_PT_scratch_overlay.draw_header(SimpleNamespace(layout=layout), context)
     panels.SCRATCH_PT_scratch_overlay.draw(SimpleNamespace(layout=layout), context)
@@ -138,7 +138,7 @@ def test07_overlay_data_is_built_once_per_change(scratched_plane):
     assert np.abs(data.positions[:, 2]).max() < 1e-3 and np.abs(data.positions[:, :2]).max() <= 1.0
     low, high = panels.colour_range(scratched_plane)
     assert 0 < low <= high
-    scratched_plane.scratch.overlay_color_by = "WIDTH"
+    scratched_plane.scratch_iridescence.overlay_color_by = "WIDTH"
     by_width = overlay.overlay_data(scratched_plane, depsgraph)
     assert by_width is not data and np.array_equal(by_width.positions, data.positions)
     bpy.ops.scratch.generate(count=20)

@@ -30,9 +30,9 @@ def main():
     import mitsuba as mi
 
     mi.set_variant("llvm_ad_spectral")
-    import mitsuba_bridge
-    from mitsuba_bridge import bsdf as scratch_bsdf
-    from mitsuba_bridge.scratch import ScratchSet
+    from scratch_iridescence import mitsuba_bridge
+    from scratch_iridescence.mitsuba_bridge import bsdf as scratch_bsdf
+    from scratch_iridescence.mitsuba_bridge.scratch import ScratchSet
 
     mitsuba_bridge.register_plugins()
     n = args.lanes

@@ -28,7 +28,7 @@ PITCH_M, DISC_M = 1.6e-6, 0.12
 
 
 def cd_scratches(count=SCRATCHES, vertices=2):
-    from mitsuba_bridge import scratch
+    from scratch_iridescence.mitsuba_bridge import scratch
 
     radii = np.arange(22.5e-3, 58e-3, PITCH_M) / DISC_M  # UV units
     per_track = int(np.ceil(count / len(radii)))
@@ -56,7 +56,7 @@ def load_run(path: str) -> None:
     import mitsuba as mi
 
     mi.set_variant("llvm_ad_spectral")
-    import mitsuba_bridge
+    from scratch_iridescence import mitsuba_bridge
 
     mitsuba_bridge.register_plugins()
     base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
@@ -93,7 +93,7 @@ def main():
     if args.load_run:
         return load_run(args.load_run)
 
-    from mitsuba_bridge import scratch
+    from scratch_iridescence.mitsuba_bridge import scratch
 
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / "cd.npz"

@@ -17,9 +17,9 @@ import numpy as np
 
 import scratch_iridescence
 from scratch_iridescence.addon import mesh, storage
-from scratch_iridescence.addon.lines import overlay_arrays, scratch_lines
-from scratch_iridescence.addon.overlay import overlay_data
-from scratch_iridescence.addon.uvmap import UVLocator
+from scratch_iridescence.addon.geometry.lines import overlay_arrays, scratch_lines
+from scratch_iridescence.addon.ui.overlay import overlay_data
+from scratch_iridescence.addon.geometry.uvmap import UVLocator
 
 
 def best_of(repeat, function, setup=None):

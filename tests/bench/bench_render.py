@@ -8,7 +8,7 @@ rendered in passes of ``--pass-spp``, path tracer of depth 3, llvm_ad_spectral.
 Core-seconds are the process's CPU time (user + system, every thread), so the
 figure does not depend on how many cores are free on a shared machine.  Target
 (issue 3): at least 1e6 samples per core-second; the paper rendered this figure
-at about 2.5e5 (MODEL.md §10).  ``roughconductor`` on the same plate gives the
+at about 2.5e5 (docs/model.md §10).  ``roughconductor`` on the same plate gives the
 cost of everything but the scratch BSDF.
 
 Run: ``.venv/bin/python tests/bench/bench_render.py [--out out/plate.png]``.
@@ -39,9 +39,9 @@ def main():
     import mitsuba as mi
 
     mi.set_variant("llvm_ad_spectral")
-    import mitsuba_bridge
-    from mitsuba_bridge import bsdf as scratch_bsdf
-    from mitsuba_bridge import scratch
+    from scratch_iridescence import mitsuba_bridge
+    from scratch_iridescence.mitsuba_bridge import bsdf as scratch_bsdf
+    from scratch_iridescence.mitsuba_bridge import scratch
 
     mitsuba_bridge.register_plugins()
     start = time.perf_counter()

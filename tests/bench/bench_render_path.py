@@ -3,7 +3,7 @@
 1. A 1-million-triangle mesh (a subdivided grid with UVs and smooth normals):
    gather from the depsgraph, build the in-memory Mitsuba scene, and write an
    export folder (PLY).  Target: gather + build < 2 s, gather + export < 2 s.
-2. The demo scene (addon/scenes/demo.py): gather + build + scene load versus a
+2. The demo scene (scenes/demo.py): gather + build + scene load versus a
    512² × 64 spp render of it.  Target: < 10 % of the render.
 
 Run: ``.venv/bin/python tests/bench/bench_render_path.py`` (``make bench`` runs every benchmark).
@@ -75,7 +75,7 @@ def million_triangles(repeat: int) -> None:
 def demo_scene(repeat: int, resolution: int, spp: int) -> None:
     import bpy
 
-    from scratch_iridescence.addon.scenes import demo
+    from scratch_iridescence.scenes import demo
     from scratch_iridescence.addon.render.gather import gather_scene, gather_settings
     from scratch_iridescence.mitsuba_bridge import builder, render, variants
 

@@ -14,7 +14,7 @@ import time
 import tracemalloc
 from pathlib import Path
 
-from mitsuba_bridge import scratch
+from scratch_iridescence.mitsuba_bridge import scratch
 
 
 def best_of(repeat, function):

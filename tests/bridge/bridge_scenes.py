@@ -1,7 +1,7 @@
 """Small scenes built in code for the bridge tests."""
 import numpy as np
 
-from mitsuba_bridge import scene as S
+from scratch_iridescence.mitsuba_bridge import scene as S
 
 
 def quad(size=2.0, name="quad") -> S.MeshData:

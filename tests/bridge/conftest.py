@@ -7,7 +7,7 @@ mi = pytest.importorskip("mitsuba")
 @pytest.fixture(scope="session")
 def variant():
     """``llvm_ad_spectral`` with the project's plugins registered."""
-    from mitsuba_bridge import variants
+    from scratch_iridescence.mitsuba_bridge import variants
 
     return variants.activate("llvm_ad_spectral")
 

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from bridge_scenes import bright_centroid, camera_at, emissive_dot, quad, simple_scene
-from mitsuba_bridge import builder, render
-from mitsuba_bridge import scene as S
+from scratch_iridescence.mitsuba_bridge import builder, render
+from scratch_iridescence.mitsuba_bridge import scene as S
 
 mi = pytest.importorskip("mitsuba")
 
@@ -278,7 +278,7 @@ def test_mirrored_instances_keep_their_normals(variant):
     mesh = S.MeshData("tri", np.array([[-1, -1, 0], [1, -1, 0], [0, 1, 0]], np.float32),
                       np.array([[0, 1, 2]], np.uint32), np.array([[0, 0, 1]] * 3, np.float32))
     mirror = np.diag([-1.0, 1.0, 1.0, 1.0])
-    from mitsuba_bridge.builder.resources import world_geometry
+    from scratch_iridescence.mitsuba_bridge.builder.resources import world_geometry
 
     positions, faces, normals = world_geometry(S.Shape("m", mesh, mirror, "grey"))
     geometric = np.cross(positions[faces[0, 1]] - positions[faces[0, 0]], positions[faces[0, 2]] - positions[faces[0, 0]])

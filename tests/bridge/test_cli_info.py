@@ -1,4 +1,4 @@
-"""``python -m mitsuba_bridge info`` on damaged files: one ``error:`` line each, exit status 1, no traceback."""
+"""``python -m scratch_iridescence.mitsuba_bridge info`` on damaged files: one ``error:`` line each, exit status 1, no traceback."""
 import io
 import subprocess
 import sys
@@ -7,8 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mitsuba_bridge import scratch
-from mitsuba_bridge.__main__ import main
+from scratch_iridescence.mitsuba_bridge import scratch
+from scratch_iridescence.mitsuba_bridge.__main__ import main
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -71,6 +71,6 @@ def test_info_goes_on_after_a_damaged_file(tmp_path, capsys):
 def test_info_in_a_fresh_process_prints_no_traceback(tmp_path):
     bad = tmp_path / "bad.npz"
     bad.write_bytes(overflowing_offsets())
-    done = subprocess.run([sys.executable, "-m", "mitsuba_bridge", "info", str(bad)], capture_output=True,
+    done = subprocess.run([sys.executable, "-m", "scratch_iridescence.mitsuba_bridge", "info", str(bad)], capture_output=True,
                           text=True, cwd=ROOT, timeout=120)
     assert done.returncode == 1 and "Traceback" not in done.stderr and "field 'offsets'" in done.stderr

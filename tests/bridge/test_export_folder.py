@@ -7,12 +7,15 @@ import numpy as np
 import pytest
 
 from bridge_scenes import camera_at, quad, simple_scene
-from mitsuba_bridge import builder, export
-from mitsuba_bridge import scene as S
-from mitsuba_bridge.exr import read_exr, write_exr
-from mitsuba_bridge.ply import write_ply
+from scratch_iridescence.mitsuba_bridge import builder, export
+from scratch_iridescence.mitsuba_bridge import scene as S
+from scratch_iridescence.mitsuba_bridge.exr import read_exr, write_exr
+from scratch_iridescence.mitsuba_bridge.ply import write_ply
 
 ROOT = Path(__file__).resolve().parents[2]
+
+#: The bridge's command line.
+CLI = [sys.executable, "-m", "scratch_iridescence.mitsuba_bridge"]
 
 
 def rich_scene(tmp_path):
@@ -85,7 +88,7 @@ def test03_ply_files_round_trip_through_mitsuba(variant, tmp_path):
 def test04_command_line_renders_an_exported_folder_to_exr(variant, tmp_path):
     export.export_folder(rich_scene(tmp_path), S.RenderSettings(spp=4), tmp_path / "out")
     output = tmp_path / "image.exr"
-    result = subprocess.run([sys.executable, "-m", "mitsuba_bridge", "render", str(tmp_path / "out"), "-o",
+    result = subprocess.run([*CLI, "render", str(tmp_path / "out"), "-o",
                              str(output), "--spp", "8"], capture_output=True, text=True, cwd=ROOT)
     assert result.returncode == 0, result.stderr
     assert "8/8 spp" in result.stdout and output.is_file()
@@ -94,7 +97,7 @@ def test04_command_line_renders_an_exported_folder_to_exr(variant, tmp_path):
 
 
 def test05_command_line_explains_a_missing_folder(tmp_path):
-    result = subprocess.run([sys.executable, "-m", "mitsuba_bridge", "render", str(tmp_path / "nothing"), "-o",
+    result = subprocess.run([*CLI, "render", str(tmp_path / "nothing"), "-o",
                              str(tmp_path / "x.exr")], capture_output=True, text=True, cwd=ROOT)
     assert result.returncode == 1 and "no such scene file" in result.stderr
     assert not (tmp_path / "x.exr").exists()
@@ -102,7 +105,7 @@ def test05_command_line_explains_a_missing_folder(tmp_path):
 
 def test06_in_memory_objects_cannot_be_written_as_xml(variant):
     import mitsuba as mi
-    from mitsuba_bridge.scenexml import dict_to_xml
+    from scratch_iridescence.mitsuba_bridge.scenexml import dict_to_xml
 
     with pytest.raises(TypeError, match="cannot write"):
         dict_to_xml({"type": "scene", "a": {"type": "diffuse", "reflectance": mi.Bitmap(np.zeros((2, 2, 3)))}})

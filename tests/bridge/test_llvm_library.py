@@ -25,7 +25,7 @@ from pathlib import Path
 
 import pytest
 
-from mitsuba_bridge import llvm_library, variants
+from scratch_iridescence.mitsuba_bridge import llvm_library, variants
 
 dr = pytest.importorskip("drjit")
 
@@ -42,7 +42,7 @@ print('SURVIVED')
 
 #: The bridge's way in: choose the variant (which checks the LLVM), then render the Cornell box at 1 spp.
 CHECKED = """
-from mitsuba_bridge import variants
+from scratch_iridescence.mitsuba_bridge import variants
 try:
     variant = variants.activate('auto')
 except variants.VariantError as error:
@@ -224,7 +224,7 @@ def test_a_bundled_llvm_that_cannot_load_is_named_in_the_error(tmp_path, blender
 
 
 PROBE_BYPASSING_THE_VERSION_CHECK = """
-from mitsuba_bridge import llvm_library, variants
+from scratch_iridescence.mitsuba_bridge import llvm_library, variants
 llvm_library.llvm_problem = lambda: None  # as if LLVM 15 had passed the version check
 try:
     variants.activate('auto')

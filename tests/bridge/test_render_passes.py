@@ -3,8 +3,8 @@ import numpy as np
 import pytest
 
 from bridge_scenes import simple_scene
-from mitsuba_bridge import builder, render
-from mitsuba_bridge import scene as S
+from scratch_iridescence.mitsuba_bridge import builder, render
+from scratch_iridescence.mitsuba_bridge import scene as S
 
 
 def test01_first_pass_takes_one_sample_then_passes_fill_the_target_time():

@@ -3,8 +3,8 @@ import numpy as np
 import pytest
 
 from bridge_scenes import camera_at, quad, simple_scene
-from mitsuba_bridge import builder, export, render, scratch
-from mitsuba_bridge import scene as S
+from scratch_iridescence.mitsuba_bridge import builder, export, render, scratch
+from scratch_iridescence.mitsuba_bridge import scene as S
 
 
 def plate_scene(material):
@@ -34,9 +34,9 @@ def metal(scratches, **settings):
 
 
 def test_scratched_metal_becomes_the_scratch_bsdf_with_its_settings(variant, scratches):
-    from mitsuba_bridge.bsdf import PLUGIN_NAME
+    from scratch_iridescence.mitsuba_bridge.bsdf import PLUGIN_NAME
 
-    bsdf = builder.bsdf_dict(metal(scratches, material="Au", coherent=False, unit_scale=0.01,
+    bsdf = builder.bsdf_dict(metal(scratches, material="Au", coherent=False, metres_per_unit=0.01,
                                    diffuse_reflectance=(0.1, 0.2, 0.3)), builder.InMemory(), key="plate")
     assert bsdf["type"] == PLUGIN_NAME and bsdf["material"] == "Au" and bsdf["coherent"] is False
     assert bsdf["unit_scale"] == 0.01 and bsdf["coherence_diameter"] == 30e-6

@@ -1,7 +1,7 @@
 """Variant choice: spectral always, CUDA when Dr.Jit finds a device, else LLVM (tested on LLVM only)."""
 import pytest
 
-from mitsuba_bridge import variants
+from scratch_iridescence.mitsuba_bridge import variants
 
 dr = pytest.importorskip("drjit")
 

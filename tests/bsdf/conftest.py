@@ -7,7 +7,7 @@ that switch variants.
 import mitsuba as mi
 import pytest
 
-import mitsuba_bridge
+from scratch_iridescence import mitsuba_bridge
 
 VARIANT = "llvm_ad_spectral"
 mi.set_variant(VARIANT)

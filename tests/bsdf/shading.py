@@ -1,6 +1,6 @@
 """Hand-built shading points and scratch sets for the BSDF tests (needs an active variant).
 
-The shared part lives in :mod:`mitsuba_bridge.bsdf.probe` (the numerical
+The shared part lives in :mod:`scratch_iridescence.mitsuba_bridge.bsdf.probe` (the numerical
 validation uses it too); this adds what only tests need.
 """
 from __future__ import annotations
@@ -10,8 +10,8 @@ import mitsuba as mi
 import numpy as np
 
 # Re-exported: the tests call them as shading.<name>.
-from mitsuba_bridge.bsdf.probe import (UNIT_SCALE, X0_UV, eval_brdf, floats, interaction,  # noqa: F401
-                                       load_bsdf, scratch_set, spectrum_rows, to_uv, vector)
+from scratch_iridescence.mitsuba_bridge.bsdf.probe import (  # noqa: F401
+    UNIT_SCALE, X0_UV, eval_brdf, floats, interaction, load_bsdf, scratch_set, spectrum_rows, to_uv, vector)
 
 
 def direction(theta_deg, phi_deg=0.0):

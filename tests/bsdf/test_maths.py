@@ -9,12 +9,12 @@ import pytest
 from scipy import integrate
 from scipy.special import wofz
 
-from mitsuba_bridge.bsdf import fresnel, profiles
-from mitsuba_bridge.bsdf.complexmath import Cx
-from mitsuba_bridge.bsdf.faddeeva import DEFAULT_TERMS, faddeeva, weideman_coefficients
-from mitsuba_bridge.bsdf.window import window_integral
+from scratch_iridescence.mitsuba_bridge.bsdf import fresnel, profiles
+from scratch_iridescence.mitsuba_bridge.bsdf.complexmath import Cx
+from scratch_iridescence.mitsuba_bridge.bsdf.faddeeva import DEFAULT_TERMS, faddeeva, weideman_coefficients
+from scratch_iridescence.mitsuba_bridge.bsdf.window import window_integral
 
-# MODEL.md §3.2 prints these (N = 16, Horner order).
+# docs/model.md §3.2 prints these (N = 16, Horner order).
 MODEL_COEFFICIENTS = [
     9.9393225361232851e-07, 3.9812875751276274e-06, -5.5842334110358388e-06, -2.7346404624397707e-05,
     2.1709867932311022e-05, 2.1071056396538515e-04, 8.7031584284602594e-05, -1.5276597401220064e-03,

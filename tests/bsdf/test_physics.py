@@ -6,10 +6,10 @@ import mitsuba as mi
 import numpy as np
 import pytest
 
-from mitsuba_bridge.bsdf import reference as ref
+from scratch_iridescence.mitsuba_bridge.bsdf import reference as ref
 import shading
-from mitsuba_bridge import bsdf as scratch_bsdf
-from mitsuba_bridge.scratch import Profile, ScratchSet
+from scratch_iridescence.mitsuba_bridge import bsdf as scratch_bsdf
+from scratch_iridescence.mitsuba_bridge.scratch import Profile, ScratchSet
 
 CD_PITCH, CD_WIDTH, CD_DEPTH = 1.6, 1.0, 0.12  # µm (Stam 1999, the supplement's CD)
 
@@ -134,7 +134,7 @@ def test05_scratched_albedo_never_exceeds_one(name, theta):
 
 @pytest.mark.slow
 def test05b_deep_grooves_gain_energy_in_the_scalar_model_and_the_plugin_adds_none():
-    """MODEL.md §4's phase exp(i 2π(γ_i + γ_o) d / λ) depends on the outgoing direction, so Parseval
+    """The phase exp(i 2π(γ_i + γ_o) d / λ) (docs/model.md §4.1) depends on the outgoing direction, so Parseval
     does not apply: a 1 µm deep groove reflects more than it receives.  The brute-force field of the
     same height field shows the same excess: the plugin is faithful to the model (docs/bsdf.md)."""
     sigma, lam = 1.0, 0.65

@@ -9,13 +9,13 @@ import mitsuba as mi
 import numpy as np
 import pytest
 
-import mitsuba_bridge
-from mitsuba_bridge.bsdf import reference
+from scratch_iridescence import mitsuba_bridge
+from scratch_iridescence.mitsuba_bridge.bsdf import reference
 import shading
-from mitsuba_bridge import bsdf as scratch_bsdf
-from mitsuba_bridge import scratch
-from mitsuba_bridge.bsdf import parameters
-from mitsuba_bridge.bsdf.plugin import MANUAL, plugin_class
+from scratch_iridescence.mitsuba_bridge import bsdf as scratch_bsdf
+from scratch_iridescence.mitsuba_bridge import scratch
+from scratch_iridescence.mitsuba_bridge.bsdf import parameters
+from scratch_iridescence.mitsuba_bridge.bsdf.plugin import MANUAL, plugin_class
 
 
 @pytest.fixture(scope="module")
@@ -55,7 +55,7 @@ def test02_registration_is_idempotent_and_importing_has_no_side_effects():
     mitsuba_bridge.register_plugins()
     mitsuba_bridge.register_plugins()
     assert isinstance(mi.load_dict({"type": parameters.PLUGIN_NAME}), mi.BSDF)
-    code = ("import sys, mitsuba_bridge.bsdf, mitsuba_bridge.bsdf.parameters; "
+    code = ("import sys, scratch_iridescence.mitsuba_bridge.bsdf, scratch_iridescence.mitsuba_bridge.bsdf.parameters; "
             "print('mitsuba' in sys.modules, 'drjit' in sys.modules)")
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert result.stdout.split() == ["False", "False"], result.stderr

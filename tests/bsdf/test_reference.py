@@ -1,4 +1,4 @@
-"""The plugin against a brute-force wave field of explicit height fields (MODEL.md §8.1).
+"""The plugin against a brute-force wave field of explicit height fields (docs/model.md §8.1).
 
 Each configuration is a few scratches given in micrometres around the shading
 point, put into a ScratchSet in UV and evaluated through the loaded plugin
@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mitsuba_bridge.bsdf import reference as ref
+from scratch_iridescence.mitsuba_bridge.bsdf import reference as ref
 import shading
 
 SIGMA_UM = 2.0  # δ_c = 12 µm keeps the rasters small; W/σ up to 1 is the demanding regime
@@ -85,7 +85,7 @@ def test01_plugin_matches_brute_force_wave_field(name):
 
 @pytest.mark.parametrize("name", ["rect_offset", "v_groove_offset", "dense_grating"])
 def test02_plain_separable_model_fails_where_the_plugin_passes(name):
-    """MODEL.md §3: freezing the window across offset scratches and gratings is measurably off."""
+    """docs/model.md §3.3: freezing the window across offset scratches and gratings is measurably off."""
     plain = relative_errors(CONFIGS[name], lambda *a: ref.field_separable_model(*a, complex_shift=False))
     assert max(plain.values()) > TOLERANCE, plain
 

@@ -4,8 +4,8 @@ from __future__ import annotations
 import mitsuba as mi
 import numpy as np
 
-from mitsuba_bridge import bsdf as scratch_bsdf
-from mitsuba_bridge import scratch
+from scratch_iridescence.mitsuba_bridge import bsdf as scratch_bsdf
+from scratch_iridescence.mitsuba_bridge import scratch
 
 SIZE = 64
 
@@ -75,7 +75,7 @@ if __name__ == "__main__":  # write the test image for a look: python tests/bsdf
     import sys
 
     mi.set_variant("llvm_ad_spectral")
-    import mitsuba_bridge
+    from scratch_iridescence import mitsuba_bridge
 
     mitsuba_bridge.register_plugins()
     s = scratch.random_scratches(800, seed=4, width=scratch.Gaussian(4e-6, 1.3e-6),

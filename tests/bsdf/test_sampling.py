@@ -16,7 +16,7 @@ import mitsuba as mi
 import numpy as np
 import pytest
 
-from mitsuba_bridge.bsdf import reference as ref
+from scratch_iridescence.mitsuba_bridge.bsdf import reference as ref
 import shading
 
 WAVELENGTHS = (520.0, 410.0, 680.0, 600.0)

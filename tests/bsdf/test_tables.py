@@ -4,9 +4,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mitsuba_bridge.bsdf import memory
-from mitsuba_bridge.bsdf.tables import MAX_PIECE_UV, TARGET_PER_CELL, build_tables
-from mitsuba_bridge.scratch import Gaussian, Profile, ScratchFormatError, ScratchSet, random_scratches, subdivide
+from scratch_iridescence.mitsuba_bridge.bsdf import memory
+from scratch_iridescence.mitsuba_bridge.bsdf.tables import MAX_PIECE_UV, TARGET_PER_CELL, build_tables
+from scratch_iridescence.mitsuba_bridge.scratch import (Gaussian, Profile, ScratchFormatError, ScratchSet,
+                                                      random_scratches, subdivide)
 
 
 @pytest.fixture(scope="module")

@@ -1,10 +1,10 @@
-"""The numerical validation (``python -m mitsuba_bridge validate``) on a coarse plane: whole-plane brute force
-against the plugin, the crossing bookkeeping of the height-field raster, the figure."""
+"""The numerical validation (``python -m scratch_iridescence.mitsuba_bridge validate``) on a coarse plane:
+whole-plane brute force against the plugin, the crossing bookkeeping of the height-field raster, the figure."""
 import numpy as np
 import pytest
 
-from mitsuba_bridge import validation
-from mitsuba_bridge.bsdf import reference as ref
+from scratch_iridescence.mitsuba_bridge import validation
+from scratch_iridescence.mitsuba_bridge.bsdf import reference as ref
 
 
 @pytest.fixture

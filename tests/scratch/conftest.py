@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from mitsuba_bridge.scratch import Gaussian, Profile, ScratchSet, random_scratches
+from scratch_iridescence.mitsuba_bridge.scratch import Gaussian, Profile, ScratchSet, random_scratches
 
 
 @pytest.fixture

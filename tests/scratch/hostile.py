@@ -7,8 +7,8 @@ import zipfile
 
 import numpy as np
 
-from mitsuba_bridge import scratch
-from mitsuba_bridge.scratch import FORMAT
+from scratch_iridescence.mitsuba_bridge import scratch
+from scratch_iridescence.mitsuba_bridge.scratch import FORMAT
 
 CENTRAL_SIGNATURE = b"PK\x01\x02"
 LOCAL_SIGNATURE = b"PK\x03\x04"

@@ -7,8 +7,8 @@ import textwrap
 
 import pytest
 
-from mitsuba_bridge import scratch
-from mitsuba_bridge.scratch.atomic import write_atomically
+from scratch_iridescence.mitsuba_bridge import scratch
+from scratch_iridescence.mitsuba_bridge.scratch.atomic import write_atomically
 
 posix_only = pytest.mark.skipif(os.name != "posix", reason="file modes and symlinks as POSIX has them")
 
@@ -91,7 +91,7 @@ def test_a_real_write_failure_keeps_the_old_file(tmp_path, two_scratches):
     before = path.read_bytes()
     script = textwrap.dedent(f"""
         import resource, signal, sys
-        from mitsuba_bridge import scratch
+        from scratch_iridescence.mitsuba_bridge import scratch
         big = scratch.random_scratches(2000, seed=1)
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # get EFBIG instead of being killed
         resource.setrlimit(resource.RLIMIT_FSIZE, (4096, resource.RLIM_INFINITY))

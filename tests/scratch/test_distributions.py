@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from mitsuba_bridge.scratch import Constant, Gaussian, Uniform, parse_distribution
+from scratch_iridescence.mitsuba_bridge.scratch import Constant, Gaussian, Uniform, parse_distribution
 
 N = 200_000
 

@@ -8,8 +8,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from mitsuba_bridge import scratch
-from mitsuba_bridge.scratch import FORMAT, ScratchFormatError, ScratchSet
+from scratch_iridescence.mitsuba_bridge import scratch
+from scratch_iridescence.mitsuba_bridge.scratch import FORMAT, ScratchFormatError, ScratchSet
 
 
 def write_npz(path, arrays, compressed=False):

@@ -17,9 +17,9 @@ import zipfile
 import numpy as np
 import pytest
 
-from mitsuba_bridge import scratch
-from mitsuba_bridge.scratch import FORMAT, ScratchFormatError, ScratchSet, random_scratches
-from mitsuba_bridge.scratch.scratchset import FIELD_SPECS
+from scratch_iridescence.mitsuba_bridge import scratch
+from scratch_iridescence.mitsuba_bridge.scratch import FORMAT, ScratchFormatError, ScratchSet, random_scratches
+from scratch_iridescence.mitsuba_bridge.scratch.scratchset import FIELD_SPECS
 
 SEED = 20261130
 HEADER_ALPHABET = list(b"0123456789(),' <>|=fiuUbcOTFS:{}")

@@ -16,9 +16,9 @@ import pytest
 from hostile import (member_bytes, npy_bytes, set_compression_method, set_flag_bits, valid_file,
                      zip_bytes)
 
-from mitsuba_bridge import scratch
-from mitsuba_bridge.scratch import ScratchFormatError, ScratchSet
-from mitsuba_bridge.scratch.scratchset import MAX_SCRATCHES, MAX_VERTICES, validate_offsets
+from scratch_iridescence.mitsuba_bridge import scratch
+from scratch_iridescence.mitsuba_bridge.scratch import ScratchFormatError, ScratchSet
+from scratch_iridescence.mitsuba_bridge.scratch.scratchset import MAX_SCRATCHES, MAX_VERTICES, validate_offsets
 
 
 def refused(data: bytes, tmp_path, field=None, match=None) -> ScratchFormatError:

@@ -1,8 +1,8 @@
-"""Simplex noise and the variation of width and depth along a scratch (MODEL.md §7)."""
+"""Simplex noise and the variation of width and depth along a scratch (docs/model.md §7)."""
 import numpy as np
 import pytest
 
-from mitsuba_bridge.scratch import (GRADIENTS, ScratchSet, noise_offset, simplex_noise,
+from scratch_iridescence.mitsuba_bridge.scratch import (GRADIENTS, ScratchSet, noise_offset, simplex_noise,
                                     variation_factor, width_depth_at)
 
 

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from mitsuba_bridge.scratch import (ScratchSet, arc_parameter, edge_lengths, resample,
+from scratch_iridescence.mitsuba_bridge.scratch import (ScratchSet, arc_parameter, edge_lengths, resample,
                                     scratch_lengths, vertex_arc_length)
 
 

@@ -3,7 +3,7 @@ import os
 
 import pytest
 
-from mitsuba_bridge import scratch
+from scratch_iridescence.mitsuba_bridge import scratch
 
 
 def test_saved_bytes_are_the_file(tmp_path, plate_scratches):

@@ -2,7 +2,8 @@
 import numpy as np
 import pytest
 
-from mitsuba_bridge.scratch import Gaussian, Profile, ScratchFormatError, ScratchSet, random_scratches
+from scratch_iridescence.mitsuba_bridge.scratch import (Gaussian, Profile, ScratchFormatError, ScratchSet,
+                                                      random_scratches)
 
 
 def test_arrays_are_read_only(two_scratches):
@@ -57,7 +58,7 @@ def test_random_scratches_are_reproducible_and_inside_the_region():
     assert a.uv[:, 0].min() >= 0.2 - 1e-12 and a.uv[:, 0].max() <= 0.6 + 1e-12
     assert a.uv[:, 1].min() >= 0.3 - 1e-12 and a.uv[:, 1].max() <= 0.9 + 1e-12
     assert np.all(a.profile == Profile.TRIANGULAR)
-    from mitsuba_bridge.scratch import scratch_lengths
+    from scratch_iridescence.mitsuba_bridge.scratch import scratch_lengths
     lengths = scratch_lengths(a.uv, a.offsets)
     assert lengths.min() >= 0.05 * 0.99 and lengths.max() <= 0.1 * 1.0001
 

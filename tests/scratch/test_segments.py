@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from mitsuba_bridge.scratch import ScratchSet, subdivide, width_depth_at
+from scratch_iridescence.mitsuba_bridge.scratch import ScratchSet, subdivide, width_depth_at
 
 
 def test_constant_scratches_keep_one_segment_per_edge(two_scratches):
@@ -25,7 +25,7 @@ def test_segments_cover_each_polyline_without_gaps(plate_scratches):
     np.testing.assert_array_equal(segments.b[:-1][same], segments.a[1:][same])
     np.testing.assert_allclose(segments.t1[:-1][same], segments.t0[1:][same])
     total = np.bincount(segments.scratch, segments.length)
-    from mitsuba_bridge.scratch import scratch_lengths
+    from scratch_iridescence.mitsuba_bridge.scratch import scratch_lengths
     np.testing.assert_allclose(total, scratch_lengths(plate_scratches.uv, plate_scratches.offsets))
 
 

@@ -26,7 +26,7 @@ GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
 
 
 def gather_settings(scene) -> RenderSettings:
-    settings = scene.scratch_render
+    settings = scene.scratch_iridescence
     return RenderSettings(spp=settings.samples, max_depth=settings.max_depth, seed=settings.seed,
                           variant=settings.variant)
 
@@ -39,7 +39,7 @@ def gather_scene(depsgraph, *, camera=None) -> SceneDescription:
     """
     scene = depsgraph.scene
     warnings = Warnings()
-    film = gather_film(scene, scene.scratch_render.film_filter)
+    film = gather_film(scene, scene.scratch_iridescence.film_filter)
     camera_description = gather_camera(scene, camera if camera is not None else scene.camera, warnings)
     materials, shapes, lights, meshes = {}, [], [], {}
     for instance in depsgraph.object_instances:
@@ -129,8 +129,8 @@ def _uses_texture(material) -> bool:
 
 def _scratched_metal(obj, scene, has_uvs: bool, warnings: Warnings) -> ScratchedMetal:
     """The scratch BSDF settings of ``obj`` (its scratches, base metal, coherence)."""
-    settings = obj.scratch
-    unit_scale = float(scene.unit_settings.scale_length)
+    settings = obj.scratch_iridescence
+    metres_per_unit = float(scene.unit_settings.scale_length)
     try:
         scratches = read_scratches(obj)
     except ScratchFormatError as error:
@@ -141,6 +141,6 @@ def _scratched_metal(obj, scene, has_uvs: bool, warnings: Warnings) -> Scratched
                       "add a UV map (the scratches live in UV space)")
         scratches = ScratchSet.empty()
     diffuse = tuple(float(c) for c in settings.diffuse_reflectance)
-    return ScratchedMetal(scratches=scratches, coherence_diameter_m=float(settings.coherence_diameter) * unit_scale,
-                          unit_scale=unit_scale, material=settings.base_material, coherent=bool(settings.coherent),
+    return ScratchedMetal(scratches=scratches, coherence_diameter_m=float(settings.coherence_diameter_um) * 1e-6,
+                          metres_per_unit=metres_per_unit, material=settings.base_material, coherent=bool(settings.coherent),
                           diffuse_reflectance=diffuse if any(diffuse) else None)

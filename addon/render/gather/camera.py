@@ -5,7 +5,6 @@ import math
 
 import numpy as np
 
-from ....mitsuba_bridge.builder.transform import orthonormal
 from ....mitsuba_bridge.scene import Camera, Film
 from .report import GatherError, Warnings
 
@@ -76,7 +75,7 @@ def gather_camera(scene, camera_object, warnings: Warnings) -> Camera:
         warnings.warn("motion blur is not supported and is ignored")
 
     common = dict(
-        to_world=orthonormal(np.array(camera_object.matrix_world)),
+        to_world=np.array(camera_object.matrix_world),  # made orthonormal by Camera itself
         shift_x=data.shift_x * fitted / frame_w,
         shift_y=data.shift_y * fitted / frame_h,
         near=max(float(data.clip_start), 1e-6),

@@ -21,7 +21,6 @@ import math
 
 import numpy as np
 
-from ....mitsuba_bridge.builder.transform import orthonormal
 from ....mitsuba_bridge.scene import AreaLight, PointLight, SpotLight, SunLight
 from .report import Warnings
 
@@ -79,7 +78,7 @@ def gather_light(light_object, matrix, warnings: Warnings):
         if light.shadow_soft_size > 0:
             warnings.warn(f"{owner}: spot lights render with a point source (radius ignored)",
                           key="spot-radius")
-        return SpotLight(to_world=orthonormal(matrix), intensity=intensity, cutoff_deg=cutoff, beam_deg=beam)
+        return SpotLight(to_world=matrix, intensity=intensity, cutoff_deg=cutoff, beam_deg=beam)
     if light.type == "SUN":
         direction = -matrix[:3, 2] / np.linalg.norm(matrix[:3, 2])
         return SunLight(direction=tuple(direction), irradiance=tuple(light_colour(light)))

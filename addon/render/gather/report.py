@@ -1,10 +1,12 @@
 """Problems met while gathering: warnings shown once each, and errors that stop the render."""
 from __future__ import annotations
 
+from ....mitsuba_bridge.errors import ScratchUserError
+
 __all__ = ["GatherError", "Warnings"]
 
 
-class GatherError(RuntimeError):
+class GatherError(ScratchUserError, RuntimeError):
     """The scene cannot be rendered at all (no camera, unsupported camera...); the message says how to fix it."""
 
 

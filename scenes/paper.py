@@ -1,0 +1,232 @@
+"""``make paper``: build and render every reproduced figure, then write the gallery and the benchmark table.
+
+Each picture is made by two fresh processes, so that one scene's memory and
+compiled kernels never flatter the next:
+
+1. ``build``: an empty Blender scene, the figure module's ``build_scene`` (the
+   add-on's own operators put the scratches on), saved as ``<name>.blend``;
+2. ``render``: opens that file and renders it through the Mitsuba Scratch
+   engine (``bpy.ops.render.render``), as ``blender -b file.blend -f 1`` would,
+   writing ``<name>.exr`` (linear) and ``<name>.png`` (the scene's view
+   transform); then, apart from the render, times loading the object's
+   scratch set into the BSDF.  Its statistics go to ``<name>.json``.
+
+Afterwards the numerical validation (:mod:`...mitsuba_bridge.validation`)
+draws its figure, and :mod:`.pages` writes ``docs/gallery.md``,
+``docs/benchmarks.md`` and the small PNGs in ``docs/gallery/``.
+
+    .venv/bin/python -m scratch_iridescence.scenes.paper                 # what `make paper` runs
+    .venv/bin/python -m scratch_iridescence.scenes.paper --only fig06_cd --scale 0.25 --no-docs
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import os
+import resource
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+__all__ = ["FIGURE_MODULES", "figures", "main"]
+
+#: The figure modules, in the gallery's order.
+FIGURE_MODULES = ("fig07_plate", "fig06_cd", "fig09_grating", "fig10_base", "fig17_profile", "fig01_table")
+
+_PACKAGE = __package__  # scratch_iridescence.scenes
+
+
+def figures(only=None):
+    """The :class:`~.figure.Figure` records of the selected modules (all by default)."""
+    chosen = []
+    for name in FIGURE_MODULES:
+        if only and name not in only:
+            continue
+        module = importlib.import_module(f"{_PACKAGE}.{name}")
+        chosen.append((module, module.FIGURE))
+    return chosen
+
+
+def _cpu_seconds() -> float:
+    usage = resource.getrusage(resource.RUSAGE_SELF)
+    return usage.ru_utime + usage.ru_stime
+
+
+def _peak_mb() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+# --------------------------------------------------------------- the workers
+def _start_blender():
+    import bpy
+
+    from .. import register  # the extension package
+
+    register()
+    return bpy
+
+
+def build_worker(module_name: str, render_name: str, output: Path, resolution, samples: int) -> dict:
+    """Build one picture's scene and save it; returns build statistics."""
+    started = time.perf_counter()
+    bpy = _start_blender()
+    module = importlib.import_module(f"{_PACKAGE}.{module_name}")
+    render = next(r for r in module.FIGURE.renders if r.name == render_name)
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    began = time.perf_counter()
+    module.build_scene(bpy.context.scene, resolution=tuple(resolution), samples=samples, **render.options)
+    built = time.perf_counter() - began
+    blend = output / f"{module_name}-{render_name}.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend), compress=False)
+    return {"build_s": built, "build_process_s": time.perf_counter() - started, "blend": str(blend)}
+
+
+def _scratch_statistics(bpy) -> dict:
+    """Scratch count, segments and load time of the scene's scratched objects (after the render)."""
+    from ..mitsuba_bridge import bsdf, scratch
+    from ..addon import storage
+
+    count = segments = 0
+    load_s = 0.0
+    for obj in bpy.context.scene.objects:
+        if obj.type != "MESH" or not storage.has_scratches(obj):
+            continue
+        data = storage.raw_scratch_bytes(obj)
+        began = time.perf_counter()
+        scratches = scratch.loads(data)
+        loaded = bsdf.load(scratches, unit_scale=1.0)
+        load_s += time.perf_counter() - began
+        del loaded
+        count += scratches.count
+        segments += scratches.vertex_count - scratches.count
+    return {"scratches": count, "segments": segments, "scratch_load_s": load_s}
+
+
+def render_worker(blend: Path, output: Path) -> dict:
+    """Open ``blend``, render it through the engine, write EXR and PNG; returns render statistics."""
+    started = time.perf_counter()
+    bpy = _start_blender()
+    bpy.ops.wm.open_mainfile(filepath=str(blend))
+    scene = bpy.context.scene
+    opened = time.perf_counter() - started
+    stem = output / blend.stem
+    settings = scene.render.image_settings
+    settings.file_format, settings.color_depth, settings.exr_codec = "OPEN_EXR", "32", "ZIP"
+    scene.render.filepath = str(stem) + ".exr"
+    wall, cpu = time.perf_counter(), _cpu_seconds()
+    bpy.ops.render.render(write_still=True)
+    wall, cpu = time.perf_counter() - wall, _cpu_seconds() - cpu
+    peak = _peak_mb()
+    # RGB (no alpha channel) at the strongest compression: the gallery commits these files.
+    settings.file_format, settings.color_depth, settings.color_mode, settings.compression = "PNG", "8", "RGB", 100
+    bpy.data.images["Render Result"].save_render(filepath=str(stem) + ".png", scene=scene)
+    width, height = scene.render.resolution_x, scene.render.resolution_y
+    return {"open_s": opened, "render_s": wall, "render_cpu_s": cpu, "peak_mb": peak,
+            "width": width, "height": height, "spp": scene.scratch_iridescence.samples,
+            "exr": str(stem) + ".exr", "png": str(stem) + ".png", **_scratch_statistics(bpy)}
+
+
+# --------------------------------------------------------------- the runner
+def _run_worker(args: list[str], label: str) -> dict:
+    """Run a worker in a fresh interpreter, showing its progress now and then; return its statistics."""
+    command = [sys.executable, "-m", f"{_PACKAGE}.paper", *args]
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                               env={**os.environ, "PYTHONUNBUFFERED": "1"})
+    result, last_shown, tail, passes_s = None, 0.0, [], None
+    for line in process.stdout:
+        tail = (tail + [line])[-40:]
+        if line.startswith("RESULT "):
+            result = json.loads(line[len("RESULT "):])
+        elif line.startswith("Fra:"):
+            # The engine's progress: "Fra:1 | Mitsuba Scratch | Sample 64/64 | 62.5 s" (time since the first pass).
+            passes_s = float(line.rsplit("|", 1)[-1].strip().rstrip("s"))
+            if time.perf_counter() - last_shown > 20:
+                print(f"    {label}: {line.split('|', 2)[-1].strip()}", flush=True)
+                last_shown = time.perf_counter()
+    if process.wait() != 0 or result is None:
+        sys.stdout.write("".join(tail))
+        raise RuntimeError(f"{label}: worker failed ({' '.join(command)})")
+    if passes_s is not None:
+        result["passes_s"] = passes_s
+    return result
+
+
+def run_all(output: Path, only=None, scale: float = 1.0, samples_scale: float = 1.0) -> list[dict]:
+    """Build and render every selected picture; returns one statistics record per picture."""
+    records = []
+    for module, figure in figures(only):
+        for render in figure.renders:
+            name = f"{module.__name__.rsplit('.', 1)[-1]}-{render.name}"
+            resolution = [max(8, round(v * scale)) for v in render.resolution]
+            samples = max(1, round(render.samples * samples_scale))
+            print(f"{figure.label} {figure.title}, {render.name}: {resolution[0]} x {resolution[1]}, "
+                  f"{samples} spp", flush=True)
+            began = time.perf_counter()
+            built = _run_worker(["build", module.__name__.rsplit(".", 1)[-1], render.name, "--output", str(output),
+                                 "--resolution", *map(str, resolution), "--samples", str(samples)], name)
+            rendered = _run_worker(["render", built["blend"], "--output", str(output)], name)
+            record = {"figure": figure.key, "render": render.name, "name": name,
+                      "total_s": time.perf_counter() - began, **built, **rendered}
+            (output / f"{name}.json").write_text(json.dumps(record, indent=1))
+            print(f"  done in {record['total_s']:.0f} s (render {record['render_s']:.0f} s, "
+                  f"peak {record['peak_mb']:.0f} MB)", flush=True)
+            records.append(record)
+    return records
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command")
+    build = sub.add_parser("build", help="(worker) build one picture's scene and save it")
+    build.add_argument("module")
+    build.add_argument("render")
+    build.add_argument("--output", type=Path, required=True)
+    build.add_argument("--resolution", type=int, nargs=2, required=True)
+    build.add_argument("--samples", type=int, required=True)
+    render = sub.add_parser("render", help="(worker) render a saved scene")
+    render.add_argument("blend", type=Path)
+    render.add_argument("--output", type=Path, required=True)
+    parser.add_argument("--output", type=Path, default=Path("out/paper"), help="renders and statistics")
+    parser.add_argument("--docs", type=Path, default=Path("docs"), help="where gallery.md and benchmarks.md go")
+    parser.add_argument("--only", nargs="+", choices=FIGURE_MODULES, help="render only these figures")
+    parser.add_argument("--scale", type=float, default=1.0, help="resolution factor (quick looks)")
+    parser.add_argument("--samples-scale", type=float, default=1.0, help="samples-per-pixel factor")
+    parser.add_argument("--no-docs", action="store_true", help="render only; leave docs/ alone")
+    parser.add_argument("--no-validation", action="store_true", help="skip the numerical validation figure")
+    parser.add_argument("--pages-only", action="store_true",
+                        help="render nothing: rewrite the pages from the statistics already in --output")
+    args = parser.parse_args(argv)
+
+    if args.command == "build":
+        stats = build_worker(args.module, args.render, args.output.resolve(), args.resolution, args.samples)
+        print("RESULT " + json.dumps(stats), flush=True)
+        return 0
+    if args.command == "render":
+        stats = render_worker(args.blend.resolve(), args.output.resolve())
+        print("RESULT " + json.dumps(stats), flush=True)
+        return 0
+
+    started = time.perf_counter()
+    output = args.output.resolve()
+    output.mkdir(parents=True, exist_ok=True)
+    records = [] if args.pages_only else run_all(output, args.only, args.scale, args.samples_scale)
+    validation = None
+    if not (args.no_validation or args.pages_only):
+        from ..mitsuba_bridge import validation as numerics
+
+        print("Numerical validation (supplement Fig. 15)", flush=True)
+        validation = numerics.run(output / "validation")
+    if not args.no_docs:
+        from . import pages
+
+        if validation is None and (output / "validation" / "validation.json").exists():
+            validation = json.loads((output / "validation" / "validation.json").read_text())
+        pages.write(args.docs.resolve(), pages.load_records(output), validation, figures(), output)
+    print(f"paper: {len(records)} pictures in {time.perf_counter() - started:.0f} s; renders in {output}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
