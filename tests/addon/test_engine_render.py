@@ -163,16 +163,16 @@ def test_animation_renders_every_frame(lit, tmp_path):
     assert bright_centroid(first, 2.0)[0] < 12 and bright_centroid(second, 2.0)[0] > 20
 
 
-def test_progress_reaches_one_and_cancel_stops_within_a_pass(recording, lit, tmp_path):
+def test_progress_reaches_one_and_cancel_stops_within_a_chunk(recording, lit, tmp_path):
     lit.render.engine = RecordingEngine.bl_idname
-    lit.scratch_render.samples = 64
+    lit.scratch_render.samples = 67  # 32 x 24 pixels: chunks of 64, 2 and 1 spp (the schedule's binary remainder)
     render_to(lit, tmp_path / "done.exr")
-    assert recording.progress[-1] == 1.0 and len(recording.progress) >= 2
+    assert recording.progress == pytest.approx([64 / 67, 66 / 67, 1.0])
     recording.progress.clear()
     recording.cancel_after = 1
-    lit.scratch_render.samples = 100_000
+    lit.scratch_render.samples = 1_000_000  # full chunks of 4096 spp
     image = render_to(lit, tmp_path / "cancelled.exr")
-    assert len(recording.progress) == 1 and recording.progress[0] < 0.01  # stopped after the first pass
+    assert recording.progress == pytest.approx([4096 / 1_000_000])  # stopped after the first chunk
     assert image[..., :3].mean() > 0.1  # what was rendered is kept, as Cycles does
     assert any("cancelled" in message for _, message in recording.reports)
 

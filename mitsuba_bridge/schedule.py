@@ -1,0 +1,192 @@
+"""The fixed sample schedule of a render and the order its chunks are summed in.
+
+A render of ``spp`` samples per pixel is split into *chunks*, one
+``mi.render(scene, spp=chunk.spp, seed=chunk.seed)`` call each.  The split
+depends only on (spp, pixel count, seed), never on time or machine load, so
+the same scene, spp and seed always give the same image, bit for bit, on one
+machine or spread over many (``--chunk K/N`` and ``merge`` on the command line).
+
+* **Sizes.**  Every chunk takes ``per_chunk`` samples per pixel, the largest
+  power of two whose ``pixels × per_chunk`` stays within
+  :data:`MAX_SAMPLES_PER_PASS` (memory in flight, see docs/rendering.md); the
+  remainder is split into its binary digits, largest first.  All sizes are
+  powers of two, so the few compiled kernels (one per distinct spp) are reused
+  across chunks and across renders.
+* **Seeds.**  Chunk ``i`` uses :func:`pass_seed` ``(seed, i)``: distinct
+  32-bit seeds, so chunks draw independent samples.
+* **Sum.**  Chunk ``i`` contributes ``float64(image_i) × spp_i`` (exact: a
+  float32 times an integer below 2**29 fits in a float64).  The contributions
+  are added pairwise along a fixed binary tree over the chunk indices
+  (:class:`PairwiseSum`), and any contiguous run of chunks is a handful of
+  whole tree nodes (:func:`tree_nodes`).  A machine that renders a run of
+  chunks stores its node sums; the merge adds the nodes exactly as a single
+  machine would have, so the result is the same bit for bit.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+__all__ = ["MAX_SAMPLES_PER_PASS", "Chunk", "Node", "sample_schedule", "chunks_per_pass", "pass_seed",
+           "part_range", "tree_nodes", "tree_sum", "PairwiseSum"]
+
+#: Samples in flight per ``mi.render`` call; beyond this LLVM and CUDA only use more memory.
+MAX_SAMPLES_PER_PASS = 1 << 22
+
+
+@dataclass(frozen=True)
+class Chunk:
+    """One ``mi.render`` call of a schedule: its position, samples per pixel and sampler seed."""
+
+    index: int
+    spp: int
+    seed: int
+
+
+@dataclass(frozen=True, order=True)
+class Node:
+    """A node of the summation tree: chunks ``[index·2**level, (index+1)·2**level)`` (clipped to the schedule)."""
+
+    level: int
+    index: int
+
+    @property
+    def start(self) -> int:
+        return self.index << self.level
+
+    @property
+    def stop(self) -> int:
+        return (self.index + 1) << self.level
+
+
+def pass_seed(seed: int, index: int) -> int:
+    """A distinct 32-bit sampler seed per (user seed, chunk index) pair."""
+    return (int(seed) * 0x9E3779B1 + int(index)) & 0xFFFFFFFF
+
+
+def chunks_per_pass(pixels: int) -> int:
+    """Samples per pixel of a full chunk: the largest power of two with ``pixels × spp ≤ MAX_SAMPLES_PER_PASS``
+    (at least 1)."""
+    budget = max(1, MAX_SAMPLES_PER_PASS // max(int(pixels), 1))
+    return 1 << (budget.bit_length() - 1)
+
+
+def sample_schedule(spp: int, pixels: int, seed: int = 0) -> list[Chunk]:
+    """The chunks of a render of ``spp`` samples per pixel over ``pixels`` pixels.
+
+    Parameters
+    ----------
+    spp : int
+        Samples per pixel of the whole render (at least 1).
+    pixels : int
+        Pixels of the rendered film (the crop window's width × height).
+    seed : int
+        The user's seed; each chunk gets its own seed derived from it.
+
+    Returns
+    -------
+    list of Chunk
+        ``Chunk(index, spp, seed)`` in rendering order; their ``spp`` sum to
+        ``spp``.  The same arguments always give the same list.
+
+    Examples
+    --------
+    >>> [c.spp for c in sample_schedule(100, 512 * 512)]
+    [16, 16, 16, 16, 16, 16, 4]
+    """
+    spp, pixels = int(spp), int(pixels)
+    if spp < 1:
+        raise ValueError(f"spp must be at least 1, got {spp}")
+    if pixels < 1:
+        raise ValueError(f"the film must have at least one pixel, got {pixels}")
+    full = chunks_per_pass(pixels)
+    sizes = [full] * (spp // full)
+    remainder = spp % full
+    sizes += [1 << bit for bit in reversed(range(remainder.bit_length())) if remainder >> bit & 1]
+    return [Chunk(index, size, pass_seed(seed, index)) for index, size in enumerate(sizes)]
+
+
+def part_range(part: int, parts: int, chunk_count: int) -> range:
+    """Chunk indices of part ``part`` (1-based) of ``parts`` contiguous, near-equal parts."""
+    if not 1 <= part <= parts:
+        raise ValueError(f"part {part} of {parts}: expected 1 <= part <= {parts}")
+    if parts > chunk_count:
+        raise ValueError(f"this render has {chunk_count} chunk{'s' * (chunk_count != 1)}: it splits into at "
+                         f"most {chunk_count} parts, not {parts}")
+    return range((part - 1) * chunk_count // parts, part * chunk_count // parts)
+
+
+def tree_nodes(chunks: range, chunk_count: int) -> list[Node]:
+    """The fewest whole tree nodes that cover the contiguous run ``chunks`` of a ``chunk_count``-chunk schedule.
+
+    A node reaching past the schedule's end counts as whole when its chunks
+    inside the schedule all lie in ``chunks``.
+    """
+    nodes, start = [], chunks.start
+    while start < chunks.stop:
+        level = 0
+        # Grow while the node stays aligned and ends inside the run (or the schedule).
+        while start % (1 << (level + 1)) == 0 and min(start + (1 << (level + 1)), chunk_count) <= chunks.stop \
+                and start + (1 << level) < chunk_count:
+            level += 1
+        nodes.append(Node(level, start >> level))
+        start = min(start + (1 << level), chunk_count)
+    return nodes
+
+
+def tree_sum(node: Node, chunk_count: int, value: Callable[[Node], np.ndarray | None]) -> np.ndarray:
+    """The sum of ``node``: ``value(node)`` when that is known (not None), else its children's sum.
+
+    A node whose right child lies past the schedule's end is its left child.
+    Raises ``KeyError`` naming the first chunk whose value is missing.
+    """
+    known = value(node)
+    if known is not None:
+        return known
+    if node.level == 0:
+        raise KeyError(node.index)
+    left, right = Node(node.level - 1, 2 * node.index), Node(node.level - 1, 2 * node.index + 1)
+    if right.start >= chunk_count:
+        return tree_sum(left, chunk_count, value)
+    return tree_sum(left, chunk_count, value) + tree_sum(right, chunk_count, value)
+
+
+def root(chunk_count: int) -> Node:
+    """The node that covers the whole schedule."""
+    return Node(max(chunk_count - 1, 0).bit_length(), 0)
+
+
+class PairwiseSum:
+    """Chunk contributions added in schedule order along the fixed tree of :func:`tree_sum`.
+
+    Holds at most log2(chunks) + 1 partial sums (aligned complete nodes).
+    :meth:`total` of all chunks equals ``tree_sum(root)`` bit for bit.
+    """
+
+    def __init__(self):
+        self._stack: list[tuple[Node, np.ndarray]] = []
+        self.count = 0
+
+    def add(self, contribution: np.ndarray) -> None:
+        """Add the next chunk's contribution (float64, ``image × spp``)."""
+        node, value = Node(0, self.count), contribution
+        self.count += 1
+        while self._stack and self._stack[-1][0].level == node.level:
+            left, left_value = self._stack.pop()
+            node, value = Node(node.level + 1, left.index >> 1), left_value + value
+        self._stack.append((node, value))
+
+    def nodes(self) -> list[tuple[Node, np.ndarray]]:
+        """The complete nodes held, largest first (they cover the chunks added so far)."""
+        return list(self._stack)
+
+    def total(self) -> np.ndarray:
+        """The sum of the chunks added so far, folded right to left (as the tree would add them)."""
+        if not self._stack:
+            raise ValueError("no chunk added yet")
+        value = self._stack[-1][1]
+        for _, partial in reversed(self._stack[:-1]):
+            value = partial + value
+        return value
