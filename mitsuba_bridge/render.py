@@ -19,10 +19,11 @@ from typing import Iterable, Iterator
 
 import numpy as np
 
+from .footprint import NotEnoughMemory, check_memory
 from .schedule import MAX_SAMPLES_PER_PASS, Chunk, PairwiseSum, pass_seed, sample_schedule
 
 __all__ = ["Progress", "Refresh", "render_passes", "render_chunks", "render_image", "film_pixels", "pass_seed",
-           "sample_schedule", "Chunk", "MAX_SAMPLES_PER_PASS"]
+           "sample_schedule", "Chunk", "MAX_SAMPLES_PER_PASS", "NotEnoughMemory"]
 
 
 @dataclass(frozen=True)
@@ -76,14 +77,15 @@ def film_pixels(scene) -> int:
 
 
 def render_chunks(scene, chunks: Iterable[Chunk], spp_total: int) -> Iterator[Progress]:
-    """Render the given ``chunks`` in order and yield the running mean after each.
+    """Render the given ``chunks`` (consecutive ones of a schedule) in order and yield the running mean after each.
 
     ``spp_total`` is the sum of their spp (for ``fraction``).  Stop iterating to
     cancel: no work is left behind.
     """
     import mitsuba as mi
 
-    sums, done, start = PairwiseSum(), 0, time.perf_counter()
+    chunks = list(chunks)
+    sums, done, start = PairwiseSum(chunks[0].index if chunks else 0), 0, time.perf_counter()
     for number, chunk in enumerate(chunks, start=1):
         image = np.asarray(mi.render(scene, spp=chunk.spp, seed=chunk.seed), dtype=np.float32)
         # float32 × an integer below 2**29 is exact in float64: the only rounding is in the fixed-order sum.
@@ -97,11 +99,16 @@ def render_passes(scene, spp: int, *, seed: int = 0) -> Iterator[Progress]:
     """Render ``scene`` with ``spp`` samples per pixel chunk by chunk, yielding the running mean after each.
 
     The chunks are :func:`sample_schedule` ``(spp, pixels, seed)``.  Stop
-    iterating to cancel: no work is left behind.
+    iterating to cancel: no work is left behind.  Raises
+    :class:`~mitsuba_bridge.footprint.NotEnoughMemory` (before rendering) when
+    the estimated memory exceeds what is free.
     """
     if spp < 1:
         raise ValueError("spp must be at least 1")
-    return render_chunks(scene, sample_schedule(spp, film_pixels(scene), seed), spp)
+    width, height = (int(c) for c in scene.sensors()[0].film().crop_size())
+    chunks = sample_schedule(spp, width * height, seed)
+    check_memory(width, height, chunks)  # before any film is allocated
+    return render_chunks(scene, chunks, spp)
 
 
 def render_image(scene, spp: int, *, seed: int = 0) -> np.ndarray:

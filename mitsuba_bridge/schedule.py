@@ -161,32 +161,43 @@ def root(chunk_count: int) -> Node:
 class PairwiseSum:
     """Chunk contributions added in schedule order along the fixed tree of :func:`tree_sum`.
 
-    Holds at most log2(chunks) + 1 partial sums (aligned complete nodes).
-    :meth:`total` of all chunks equals ``tree_sum(root)`` bit for bit.
+    Starts at chunk ``start`` (a part of a render) and holds at most
+    2·log2(chunks) + 1 partial sums, each a complete tree node.  :meth:`total`
+    of all chunks equals ``tree_sum(root)`` bit for bit, and :meth:`node_sums`
+    gives the nodes a part file stores.
     """
 
-    def __init__(self):
+    def __init__(self, start: int = 0):
         self._stack: list[tuple[Node, np.ndarray]] = []
+        self.start = int(start)
         self.count = 0
 
     def add(self, contribution: np.ndarray) -> None:
         """Add the next chunk's contribution (float64, ``image × spp``)."""
-        node, value = Node(0, self.count), contribution
+        node, value = Node(0, self.start + self.count), contribution
         self.count += 1
-        while self._stack and self._stack[-1][0].level == node.level:
+        while self._stack and self._stack[-1][0].level == node.level and self._stack[-1][0].index == node.index - 1 \
+                and node.index % 2 == 1:
             left, left_value = self._stack.pop()
             node, value = Node(node.level + 1, left.index >> 1), left_value + value
         self._stack.append((node, value))
 
-    def nodes(self) -> list[tuple[Node, np.ndarray]]:
-        """The complete nodes held, largest first (they cover the chunks added so far)."""
-        return list(self._stack)
-
     def total(self) -> np.ndarray:
-        """The sum of the chunks added so far, folded right to left (as the tree would add them)."""
-        if not self._stack:
+        """The sum of the chunks added so far, folded right to left (as the tree adds them)."""
+        return self._fold(self._stack)
+
+    def node_sums(self, chunk_count: int) -> dict[Node, np.ndarray]:
+        """The sums of :func:`tree_nodes` of the chunks added so far (in a ``chunk_count``-chunk schedule)."""
+        run = range(self.start, self.start + self.count)
+        return {node: self._fold([(held, value) for held, value in self._stack
+                                  if node.start <= held.start < node.stop])
+                for node in tree_nodes(run, chunk_count)}
+
+    @staticmethod
+    def _fold(entries) -> np.ndarray:
+        if not entries:
             raise ValueError("no chunk added yet")
-        value = self._stack[-1][1]
-        for _, partial in reversed(self._stack[:-1]):
+        value = entries[-1][1]
+        for _, partial in reversed(entries[:-1]):
             value = partial + value
         return value

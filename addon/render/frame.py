@@ -102,6 +102,8 @@ def render_frame(engine, depsgraph) -> None:
                 combined.rect.foreach_set(combined_rect(progress.image, description.film.transparent).ravel())
                 engine.update_result(result)
                 break
+    except passes.NotEnoughMemory as error:
+        _fail(engine, f"Mitsuba Scratch: {error}")
     except Exception as error:
         traceback.print_exc()
         _fail(engine, f"Mitsuba Scratch: rendering failed: {type(error).__name__}: {error}")

@@ -54,14 +54,16 @@ def test04_parts_cover_the_schedule_and_their_tree_nodes_sum_to_the_single_machi
             stored = {}
             for part in range(1, parts + 1):
                 run = schedule.part_range(part, parts, count)
-                part_sums = schedule.PairwiseSum()
+                part_sums = schedule.PairwiseSum(start=run.start)
                 for index in run:
                     part_sums.add(leaves[index])
-                nodes = schedule.tree_nodes(run, count)
+                nodes = part_sums.node_sums(count)
                 covered = sorted(i for n in nodes for i in range(n.start, min(n.stop, count)))
                 assert covered == list(run)
-                for node in nodes:  # a part computes its nodes as the tree does
-                    stored[node] = schedule.tree_sum(node, count, lambda n: leaves[n.index] if n.level == 0 else None)
+                for node, value in nodes.items():  # a part computes its nodes as the tree does
+                    tree = schedule.tree_sum(node, count, lambda n: leaves[n.index] if n.level == 0 else None)
+                    assert value.tobytes() == tree.tobytes()
+                stored.update(nodes)
             merged = schedule.tree_sum(schedule.root(count), count, stored.get)
             assert merged.tobytes() == whole.tobytes(), (count, parts)
 
