@@ -28,6 +28,7 @@ __all__ = ["PART_FORMAT", "RenderIdentity", "PartError", "scene_fingerprint", "s
 #: ``format`` attribute of a part file.
 PART_FORMAT = "scratch-iridescence/render-part/1"
 _RGBA = "RGBA"
+_EXR_MAGIC = bytes([0x76, 0x2F, 0x31, 0x01])
 
 
 class PartError(ValueError):
@@ -107,6 +108,11 @@ def read_part(path) -> Part:
     import OpenEXR
 
     path = Path(path)
+    if not path.is_file():
+        raise PartError(f"{path}: no such file")
+    with open(path, "rb") as stream:
+        if stream.read(4) != _EXR_MAGIC:  # checked here: OpenEXR would also print its own complaint
+            raise PartError(f"{path}: not a render part (not an EXR file)")
     try:
         with OpenEXR.File(str(path), separate_channels=True) as file:
             header = file.header()
@@ -127,8 +133,6 @@ def read_part(path) -> Part:
                         int(header["samples"]), nodes)
     except PartError:
         raise
-    except FileNotFoundError:
-        raise PartError(f"{path}: no such file") from None
     except (OSError, RuntimeError, KeyError, ValueError, TypeError) as error:
         raise PartError(f"{path}: not a readable render part ({type(error).__name__}: {error})") from None
 
@@ -173,5 +177,8 @@ def merge_parts(paths) -> tuple[np.ndarray, RenderIdentity]:
     if missing:
         raise PartError(f"chunks {_ranges(missing)} of {count} are missing: no part holds them")
     stored = {node: value for part in parts for node, value in part.nodes.items()}
-    total = tree_sum(root(count), count, stored.get)
+    try:
+        total = tree_sum(root(count), count, stored.get)
+    except KeyError as missing:
+        raise PartError(f"chunk {missing.args[0]}: its part file names the chunk but lacks its sums") from None
     return (total / first.identity.spp).astype(np.float32), first.identity
