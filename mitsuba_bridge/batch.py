@@ -7,6 +7,7 @@ written only once complete (:mod:`mitsuba_bridge.atomic`).
 """
 from __future__ import annotations
 
+import re
 import sys
 import time
 from pathlib import Path
@@ -27,15 +28,21 @@ class CommandError(Exception):
 
 
 def one_line(error: BaseException) -> str:
-    """An exception's message on one line (Mitsuba's load errors span several, the real cause comes last)."""
-    causes, current = [], error
-    while current is not None and len(causes) < 4:
-        causes.append(current)
-        current = current.__cause__
-    text = " ".join(str(e).strip() for e in reversed(causes) if str(e).strip()) or type(error).__name__
-    if len(causes) > 1:  # the plugin's own exception says it best; Mitsuba wraps it with context
-        text = str(causes[-1]).strip() or text
-    return " ".join(text.split())
+    """An exception's message on one line.
+
+    Mitsuba's load errors name the file and line, then (for a Python plugin)
+    embed the plugin's whole traceback: keep the location and the traceback's
+    last line, the plugin's own message.
+    """
+    lines = [line.strip() for line in str(error).splitlines() if line.strip()]
+    if not lines:
+        return type(error).__name__
+    for number, line in enumerate(lines):
+        if "Traceback (most recent call last)" in line:
+            head = line.split("Traceback (most recent call last)")[0].strip()
+            lines = [" ".join(lines[:number] + [head]), lines[-1]]
+            break
+    return re.sub(r"\[[\w.]+\.cpp:\d+\]\s*", "", " ".join(part for part in lines if part))
 
 
 def parse_chunk(text: str) -> tuple[int, int]:
@@ -73,7 +80,9 @@ def _load(folder):
     try:
         return load_folder(folder), scene_file
     except (OSError, RuntimeError, ValueError, TypeError) as error:
-        raise CommandError(f"cannot load {scene_file}: {one_line(error)}") from None
+        # Mitsuba repeats the file's path ("At /path/scene.xml (line 3, col 6): ..."): keep the line only.
+        message = one_line(error).replace(f"At {scene_file.resolve()} ", "")
+        raise CommandError(f"cannot load {scene_file}: {message}") from None
 
 
 def render_command(args) -> int:

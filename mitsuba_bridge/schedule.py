@@ -113,8 +113,9 @@ def part_range(part: int, parts: int, chunk_count: int) -> range:
     if not 1 <= part <= parts:
         raise ValueError(f"part {part} of {parts}: expected 1 <= part <= {parts}")
     if parts > chunk_count:
-        raise ValueError(f"this render has {chunk_count} chunk{'s' * (chunk_count != 1)}: it splits into at "
-                         f"most {chunk_count} parts, not {parts}")
+        plural = "s" * (chunk_count != 1)
+        raise ValueError(f"this render has {chunk_count} chunk{plural}: it splits into at most {chunk_count} "
+                         f"part{plural}, not {parts}")
     return range((part - 1) * chunk_count // parts, part * chunk_count // parts)
 
 

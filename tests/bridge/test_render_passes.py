@@ -70,7 +70,7 @@ def test04_parts_cover_the_schedule_and_their_tree_nodes_sum_to_the_single_machi
 
 def test05_parts_split_at_most_into_as_many_as_there_are_chunks():
     assert list(schedule.part_range(2, 3, 10)) == [3, 4, 5]
-    with pytest.raises(ValueError, match="at most 2 parts"):
+    with pytest.raises(ValueError, match="at most 2 parts, not 3"):
         schedule.part_range(1, 3, 2)
     with pytest.raises(ValueError, match="1 <= part <= 3"):
         schedule.part_range(4, 3, 10)
