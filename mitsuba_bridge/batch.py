@@ -12,11 +12,10 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
 
 from .output import IMAGE_SUFFIXES, check_output_path, write_image
 
-__all__ = ["CommandError", "render_command", "merge_command", "parse_chunk", "non_finite_vertex_shapes"]
+__all__ = ["CommandError", "render_command", "merge_command", "parse_chunk"]
 
 
 class CommandError(Exception):
@@ -54,20 +53,6 @@ def parse_chunk(text: str) -> tuple[int, int]:
     if not 1 <= part <= parts:
         raise CommandError(f"--chunk {text}: K must be between 1 and N", 2)
     return part, parts
-
-
-def non_finite_vertex_shapes(scene) -> list[str]:
-    """Ids of the scene's meshes with a NaN or infinite vertex position (they can blacken the image)."""
-    import mitsuba as mi
-
-    names = []
-    for shape in scene.shapes():
-        if not shape.is_mesh():
-            continue
-        positions = np.asarray(mi.traverse(shape)["vertex_positions"])
-        if not np.isfinite(positions).all():
-            names.append(shape.id() or "(unnamed)")
-    return names
 
 
 def _load(folder):
@@ -115,9 +100,6 @@ def render_command(args) -> int:
         raise CommandError(f"{scene_file}: the scene has no sensor (camera)")
     if not scene.shapes() and not scene.emitters():
         print(f"warning: {scene_file} holds no shapes and no lights: the image is black", file=sys.stderr)
-    for name in non_finite_vertex_shapes(scene):
-        print(f"warning: mesh '{name}' has NaN or infinite vertex positions: its triangles may render black "
-              "or vanish; fix the mesh (re-export from Blender drops such triangles)", file=sys.stderr)
     spp = args.spp or int(sensors[0].sampler().sample_count())
     width, height = (int(c) for c in sensors[0].film().crop_size())
     chunks = sample_schedule(spp, width * height, args.seed)

@@ -176,3 +176,26 @@ def test_ctrl_c_ends_cleanly_with_status_130(good, tmp_path):
     _, err = process.communicate(timeout=120)
     assert process.returncode == 130 and err.strip() == "interrupted: nothing was written", err
     assert read_exr(out).shape == (2, 2, 3)  # the previous file is untouched
+
+
+def test_a_mesh_file_with_nan_vertices_is_refused_by_name(variant, tmp_path, capsys):
+    """Mitsuba's PLY reader checks vertices itself (meshes built in memory are checked by mitsuba_bridge.finite)."""
+    positions = quad(4.0).positions.copy()
+    positions[0, 2] = np.nan
+    broken = S.MeshData("floor", positions, quad().faces, None, quad().uvs)
+    export.export_folder(simple_scene(shapes=[S.Shape("floor", broken, np.eye(4), "grey")],
+                                      world=S.ConstantWorld((0.5, 0.5, 0.5))), S.RenderSettings(), tmp_path / "nan")
+    assert main(["render", str(tmp_path / "nan"), "-o", str(tmp_path / "out.exr"), "--spp", "4", "-q", *LLVM]) == 1
+    err = capsys.readouterr().err
+    assert '"floor.ply": mesh contains invalid vertex position data' in err and err.count("\n") == 1
+
+
+def test_a_render_bigger_than_free_memory_is_refused_before_rendering(variant, tmp_path, capsys):
+    export.export_folder(simple_scene(film=S.Film(60_000, 60_000), world=S.ConstantWorld((0.5, 0.5, 0.5))),
+                         S.RenderSettings(), tmp_path / "huge")
+    started = time.perf_counter()
+    assert main(["render", str(tmp_path / "huge"), "-o", str(tmp_path / "out.exr"), "--spp", "4", *LLVM]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("error: a 60000 x 60000 render needs about ") and "GB of memory" in err, err
+    assert "only" in err and "is free" in err and "\n" not in err
+    assert time.perf_counter() - started < 30  # refused up front, not after allocating
