@@ -75,6 +75,8 @@ def available_memory_bytes() -> int | None:
 
 
 def _gb(count: int) -> str:
+    if count < 1e9:
+        return f"{count / 1e6:.1f} MB"
     return f"{count / 1e9:.2f} GB" if count < 1e11 else f"{count / 1e9:.0f} GB"
 
 

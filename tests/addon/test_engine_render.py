@@ -204,6 +204,16 @@ def test_no_camera_is_refused_before_rendering(empty_scene, tmp_path):
     assert not (tmp_path / "none.exr").exists()
 
 
+def test_a_render_bigger_than_free_memory_is_refused_with_the_estimate(lit, tmp_path, monkeypatch):
+    from scratch_iridescence.mitsuba_bridge import footprint
+
+    monkeypatch.setattr(footprint, "available_memory_bytes", lambda: 10_000)  # 32 x 24 needs about 0.2 MB
+    lit.render.filepath = str(tmp_path / "big.exr")
+    with pytest.raises(RuntimeError, match=r"a 32 x 24 render needs about 0\.\d MB of memory .* only 0\.0 MB is free"):
+        bpy.ops.render.render(write_still=True)
+    assert not (tmp_path / "big.exr").exists()
+
+
 def test_rendering_error_is_reported_not_a_black_image(empty_scene, tmp_path, monkeypatch):
     from scratch_iridescence.mitsuba_bridge import builder
 
