@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 from . import batch, scratch
 
@@ -44,12 +45,25 @@ def _generate(args) -> int:
     except ValueError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
-    scratches = scratch.random_scratches(
-        args.count, seed=args.seed, width=width, depth=depth, length=(args.length_min, args.length_max),
-        vertices=args.vertices, curvature=args.curvature,
-        profile=scratch.Profile[args.profile.upper()],
-        depth_variation=tuple(args.depth_variation), width_variation=tuple(args.width_variation))
-    scratch.save(scratches, args.output, compress=args.compress)
+    if args.count < 1:
+        raise batch.CommandError(f"--count must be at least 1, got {args.count}", 2)
+    if not 0 < args.length_min <= args.length_max:
+        raise batch.CommandError(f"need 0 < --length-min <= --length-max, got {args.length_min} and "
+                                 f"{args.length_max}", 2)
+    if not Path(args.output).parent.is_dir():
+        raise batch.CommandError(f"{args.output}: the folder {Path(args.output).parent} does not exist", 2)
+    try:
+        scratches = scratch.random_scratches(
+            args.count, seed=args.seed, width=width, depth=depth, length=(args.length_min, args.length_max),
+            vertices=args.vertices, curvature=args.curvature,
+            profile=scratch.Profile[args.profile.upper()],
+            depth_variation=tuple(args.depth_variation), width_variation=tuple(args.width_variation))
+    except ValueError as error:
+        raise batch.CommandError(str(error), 2) from None
+    try:
+        scratch.save(scratches, args.output, compress=args.compress)
+    except OSError as error:
+        raise batch.CommandError(f"cannot write {args.output}: {error}") from None
     print(f"wrote {args.output}: {scratches!r}")
     return 0
 
