@@ -13,6 +13,7 @@ the running mean (:class:`Refresh`).
 """
 from __future__ import annotations
 
+import functools
 import time
 from dataclasses import dataclass
 from typing import Iterable, Iterator
@@ -30,18 +31,20 @@ __all__ = ["Progress", "Refresh", "render_passes", "render_chunks", "render_imag
 class Progress:
     """State after one chunk.
 
-    ``image`` is the running mean, (H, W, 4) float32 RGBA, row 0 at the top;
-    ``chunk`` is the chunk just rendered and ``sums`` the accumulator (its
-    complete tree nodes are what a part file stores).
+    ``image`` is the running mean, (H, W, 4) float32 RGBA, row 0 at the top,
+    computed when first asked for (a display that refreshes once a second pays
+    for one mean a second, not one per chunk) from the sums held after this
+    chunk, so it stays right after later chunks.  ``sums`` is the live
+    accumulator (its tree nodes are what a part file stores).
     """
 
     index: int
     spp_done: int
     spp_total: int
     seconds: float
-    image: np.ndarray
-    chunk: Chunk | None = None
-    sums: PairwiseSum | None = None
+    chunk: Chunk
+    sums: PairwiseSum
+    partials: tuple  #: the sums' partial images after this chunk (never modified in place)
 
     @property
     def fraction(self) -> float:
@@ -50,6 +53,10 @@ class Progress:
     @property
     def finished(self) -> bool:
         return self.spp_done >= self.spp_total
+
+    @functools.cached_property
+    def image(self) -> np.ndarray:
+        return (PairwiseSum.fold(self.partials) / self.spp_done).astype(np.float32)
 
 
 class Refresh:
@@ -91,8 +98,7 @@ def render_chunks(scene, chunks: Iterable[Chunk], spp_total: int) -> Iterator[Pr
         # float32 × an integer below 2**29 is exact in float64: the only rounding is in the fixed-order sum.
         sums.add(image.astype(np.float64) * chunk.spp)
         done += chunk.spp
-        mean = (sums.total() / done).astype(np.float32)
-        yield Progress(number, done, spp_total, time.perf_counter() - start, mean, chunk, sums)
+        yield Progress(number, done, spp_total, time.perf_counter() - start, chunk, sums, sums.partials())
 
 
 def render_passes(scene, spp: int, *, seed: int = 0) -> Iterator[Progress]:

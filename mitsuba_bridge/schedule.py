@@ -185,20 +185,24 @@ class PairwiseSum:
 
     def total(self) -> np.ndarray:
         """The sum of the chunks added so far, folded right to left (as the tree adds them)."""
-        return self._fold(self._stack)
+        return self.fold(self.partials())
+
+    def partials(self) -> tuple:
+        """The partial sums held now, largest first (arrays that are never modified in place)."""
+        return tuple(value for _, value in self._stack)
 
     def node_sums(self, chunk_count: int) -> dict[Node, np.ndarray]:
         """The sums of :func:`tree_nodes` of the chunks added so far (in a ``chunk_count``-chunk schedule)."""
         run = range(self.start, self.start + self.count)
-        return {node: self._fold([(held, value) for held, value in self._stack
-                                  if node.start <= held.start < node.stop])
+        return {node: self.fold([value for held, value in self._stack if node.start <= held.start < node.stop])
                 for node in tree_nodes(run, chunk_count)}
 
     @staticmethod
-    def _fold(entries) -> np.ndarray:
-        if not entries:
+    def fold(partials) -> np.ndarray:
+        """``partials[0] + (partials[1] + (... + partials[-1]))``: how the tree adds a run's partial sums."""
+        if not partials:
             raise ValueError("no chunk added yet")
-        value = entries[-1][1]
-        for _, partial in reversed(entries[:-1]):
+        value = partials[-1]
+        for partial in reversed(partials[:-1]):
             value = partial + value
         return value

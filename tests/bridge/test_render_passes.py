@@ -102,7 +102,9 @@ def test07_running_mean_is_the_spp_weighted_mean_of_the_chunks(lit_scene, monkey
         return image
 
     monkeypatch.setattr(mi, "render", spy)
-    final = list(render.render_passes(lit_scene, 13, seed=4))[-1].image
+    steps = list(render.render_passes(lit_scene, 13, seed=4))
+    final = steps[-1].image
+    assert np.array_equal(steps[0].image, calls[0][2])  # an early mean, asked for late, is still that chunk's
     expected = sum(spp * image for spp, _, image in calls) / sum(spp for spp, _, _ in calls)
     assert np.allclose(final, expected, atol=1e-6)
     assert [(spp, seed) for spp, seed, _ in calls] == [(c.spp, c.seed)
