@@ -6,12 +6,21 @@ depends only on (spp, pixel count, seed), never on time or machine load, so
 the same scene, spp and seed always give the same image, bit for bit, on one
 machine or spread over many (``--chunk K/N`` and ``merge`` on the command line).
 
-* **Sizes.**  Every chunk takes ``per_chunk`` samples per pixel, the largest
-  power of two whose ``pixels × per_chunk`` stays within
+* **Sizes.**  Every chunk takes ``per_chunk`` samples per pixel (:func:`chunk_spp`),
+  the largest power of two whose ``pixels × per_chunk`` stays within
   :data:`MAX_SAMPLES_PER_PASS` (memory in flight, see docs/rendering.md); the
-  remainder is split into its binary digits, largest first.  All sizes are
-  powers of two, so the few compiled kernels (one per distinct spp) are reused
-  across chunks and across renders.
+  remainder goes in chunks of :data:`SMALL_CHUNK_SPP` and then of 2 and 1.  So
+  at most four sizes (four compiled kernels) serve a render.
+* **Why these sizes: one pixel, one thread.**  Mitsuba adds a pixel's samples
+  into the film with atomic float additions, so a pixel whose samples were
+  split between two CPU threads gets them added in whatever order the threads
+  ran (the last bits change from run to run).  Dr.Jit's LLVM backend (see its
+  ``LLVMThreadState::launch``) hands each thread blocks of 16 384 consecutive
+  samples once a call holds more than ``16 384 × 2 × threads`` samples, and
+  otherwise blocks that are multiples of its SIMD width (4, 8 or 16).  A
+  pixel's samples are consecutive, so they stay in one block when the chunk's
+  spp is at most 4, or when it divides 16 384 and the call is large (full
+  chunks: more than 2**21 samples, large for up to 64 threads).
 * **Seeds.**  Chunk ``i`` uses :func:`pass_seed` ``(seed, i)``: distinct
   32-bit seeds, so chunks draw independent samples.
 * **Sum.**  Chunk ``i`` contributes ``float64(image_i) × spp_i`` (exact: a
@@ -29,11 +38,17 @@ from typing import Callable
 
 import numpy as np
 
-__all__ = ["MAX_SAMPLES_PER_PASS", "Chunk", "Node", "sample_schedule", "chunks_per_pass", "pass_seed",
+__all__ = ["MAX_SAMPLES_PER_PASS", "SMALL_CHUNK_SPP", "Chunk", "Node", "sample_schedule", "chunk_spp", "pass_seed",
            "part_range", "tree_nodes", "tree_sum", "PairwiseSum"]
 
 #: Samples in flight per ``mi.render`` call; beyond this LLVM and CUDA only use more memory.
 MAX_SAMPLES_PER_PASS = 1 << 22
+#: Chunks this small never split a pixel between threads (Dr.Jit's narrowest SIMD packet holds 4 samples).
+SMALL_CHUNK_SPP = 4
+#: Dr.Jit's LLVM work block (``jit_llvm_block_size``): full chunks take at most this many spp.
+_BLOCK_SAMPLES = 16384
+#: Calls above this hand out whole 16 384-sample blocks on machines with up to 64 threads.
+_LARGE_CALL_SAMPLES = _BLOCK_SAMPLES * 2 * 64
 
 
 @dataclass(frozen=True)
@@ -66,11 +81,18 @@ def pass_seed(seed: int, index: int) -> int:
     return (int(seed) * 0x9E3779B1 + int(index)) & 0xFFFFFFFF
 
 
-def chunks_per_pass(pixels: int) -> int:
-    """Samples per pixel of a full chunk: the largest power of two with ``pixels × spp ≤ MAX_SAMPLES_PER_PASS``
-    (at least 1)."""
+def chunk_spp(pixels: int) -> int:
+    """Samples per pixel of a full chunk of a ``pixels``-pixel film (see the module docstring).
+
+    The largest power of two ``s ≤ 16 384`` with ``pixels × s ≤ MAX_SAMPLES_PER_PASS``;
+    when that call would still hold no more than :data:`_LARGE_CALL_SAMPLES`
+    samples (films under 129 pixels), :data:`SMALL_CHUNK_SPP`.
+    """
     budget = max(1, MAX_SAMPLES_PER_PASS // max(int(pixels), 1))
-    return 1 << (budget.bit_length() - 1)
+    full = min(1 << (budget.bit_length() - 1), _BLOCK_SAMPLES)
+    if full > SMALL_CHUNK_SPP and int(pixels) * full <= _LARGE_CALL_SAMPLES:
+        return SMALL_CHUNK_SPP
+    return full
 
 
 def sample_schedule(spp: int, pixels: int, seed: int = 0) -> list[Chunk]:
@@ -95,15 +117,20 @@ def sample_schedule(spp: int, pixels: int, seed: int = 0) -> list[Chunk]:
     --------
     >>> [c.spp for c in sample_schedule(100, 512 * 512)]
     [16, 16, 16, 16, 16, 16, 4]
+    >>> [c.spp for c in sample_schedule(4096 + 11, 32 * 24)]
+    [4096, 4, 4, 2, 1]
     """
     spp, pixels = int(spp), int(pixels)
     if spp < 1:
         raise ValueError(f"spp must be at least 1, got {spp}")
     if pixels < 1:
         raise ValueError(f"the film must have at least one pixel, got {pixels}")
-    full = chunks_per_pass(pixels)
+    full = chunk_spp(pixels)
     sizes = [full] * (spp // full)
     remainder = spp % full
+    if full > SMALL_CHUNK_SPP:
+        sizes += [SMALL_CHUNK_SPP] * (remainder // SMALL_CHUNK_SPP)
+        remainder %= SMALL_CHUNK_SPP
     sizes += [1 << bit for bit in reversed(range(remainder.bit_length())) if remainder >> bit & 1]
     return [Chunk(index, size, pass_seed(seed, index)) for index, size in enumerate(sizes)]
 

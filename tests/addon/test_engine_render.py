@@ -165,9 +165,9 @@ def test_animation_renders_every_frame(lit, tmp_path):
 
 def test_progress_reaches_one_and_cancel_stops_within_a_chunk(recording, lit, tmp_path):
     lit.render.engine = RecordingEngine.bl_idname
-    lit.scratch_render.samples = 67  # 32 x 24 pixels: chunks of 64, 2 and 1 spp (the schedule's binary remainder)
+    lit.scratch_render.samples = 67  # 32 x 24 pixels: sixteen chunks of 4 spp, then 2 and 1
     render_to(lit, tmp_path / "done.exr")
-    assert recording.progress == pytest.approx([64 / 67, 66 / 67, 1.0])
+    assert recording.progress == pytest.approx([n / 67 for n in range(4, 65, 4)] + [66 / 67, 1.0])
     recording.progress.clear()
     recording.cancel_after = 1
     lit.scratch_render.samples = 1_000_000  # full chunks of 4096 spp
