@@ -92,6 +92,9 @@ def render_chunks(scene, chunks: Iterable[Chunk], spp_total: int) -> Iterator[Pr
     import mitsuba as mi
 
     chunks = list(chunks)
+    indices = [chunk.index for chunk in chunks]
+    if indices and indices != list(range(indices[0], indices[0] + len(indices))):
+        raise ValueError("render_chunks needs consecutive chunks of one schedule (the sums follow their indices)")
     sums, done, start = PairwiseSum(chunks[0].index if chunks else 0), 0, time.perf_counter()
     for number, chunk in enumerate(chunks, start=1):
         image = np.asarray(mi.render(scene, spp=chunk.spp, seed=chunk.seed), dtype=np.float32)

@@ -162,3 +162,9 @@ def test11_the_image_is_the_same_bit_for_bit_whatever_the_timing(lit_scene, monk
             shown.append(progress.spp_done)
     assert shown[-1] == spp
     assert progress.image.tobytes() == quiet.tobytes()
+
+
+def test12_chunks_must_be_consecutive():
+    chunks = schedule.sample_schedule(37, 32 * 24)
+    with pytest.raises(ValueError, match="consecutive chunks"):
+        next(render.render_chunks(None, [chunks[0], chunks[2]], 8))
