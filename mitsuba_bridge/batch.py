@@ -106,7 +106,8 @@ def render_command(args) -> int:
     selected = chunks
     if chunk:
         try:
-            selected = chunks[part_range(*chunk, len(chunks)).start:part_range(*chunk, len(chunks)).stop]
+            run = part_range(*chunk, len(chunks))
+            selected = chunks[run.start:run.stop]
         except ValueError as error:
             raise CommandError(f"--chunk {args.chunk}: {error}", 2) from None
     try:
@@ -119,10 +120,13 @@ def render_command(args) -> int:
     print(f"{args.folder}: {width} x {height}, {what}, {variant}, loaded in {time.perf_counter() - started:.2f} s",
           flush=True)
     refresh, progress = Refresh(1.0), None
-    for progress in render_chunks(scene, selected, samples):
-        if not args.quiet and refresh.due(progress):
-            print(f"  {progress.spp_done:6d}/{samples} spp  {100 * progress.fraction:5.1f} %  "
-                  f"{progress.seconds:7.1f} s", flush=True)
+    try:
+        for progress in render_chunks(scene, selected, samples):
+            if not args.quiet and refresh.due(progress):
+                print(f"  {progress.spp_done:6d}/{samples} spp  {100 * progress.fraction:5.1f} %  "
+                      f"{progress.seconds:7.1f} s", flush=True)
+    except (RuntimeError, ValueError) as error:  # a plugin failing inside a kernel, Dr.Jit out of memory
+        raise CommandError(f"rendering failed: {one_line(error)} (nothing was written)") from None
     try:
         if chunk:
             identity = RenderIdentity(scene_fingerprint(scene_file.parent, EXPORTED_ENTRIES), variant, width, height,
