@@ -56,7 +56,10 @@ def scene_fingerprint(folder, entries: tuple[str, ...]) -> str:
     files = []
     for name in entries:
         path = folder / name
-        files += sorted(p for p in path.rglob("*") if p.is_file()) if path.is_dir() else [path] if path.is_file() else []
+        if path.is_dir():
+            files += sorted(p for p in path.rglob("*") if p.is_file())
+        elif path.is_file():
+            files.append(path)
     for path in files:
         digest.update(f"{path.relative_to(folder).as_posix()}\0{path.stat().st_size}\0".encode())
         with open(path, "rb") as stream:

@@ -95,7 +95,8 @@ def test06_parts_of_other_renders_are_refused(folder, thirds, tmp_path, capsys):
     other_seed = tmp_path / "seed.exr"
     assert main(["render", str(folder), "-o", str(other_seed), "--spp", SPP, "--seed", "4", "-q", *VARIANT,
                  "--chunk", "2/3"]) == 0
-    assert "different renders: seed 4 vs 3" in refused(capsys, thirds[0], other_seed, thirds[2], "-o", tmp_path / "m.exr")
+    message = refused(capsys, thirds[0], other_seed, thirds[2], "-o", tmp_path / "m.exr")
+    assert "different renders: seed 4 vs 3" in message
     other_spp = tmp_path / "spp.exr"
     assert main(["render", str(folder), "-o", str(other_spp), "--spp", "30", "--seed", "3", "-q", *VARIANT,
                  "--chunk", "2/3"]) == 0

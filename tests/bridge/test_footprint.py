@@ -25,7 +25,8 @@ def test_a_render_that_does_not_fit_is_refused_with_both_figures():
     with pytest.raises(footprint.NotEnoughMemory) as refused:
         footprint.check_memory(10_000, 10_000, chunks, available=8_000_000_000)
     message = str(refused.value)
-    assert message.startswith("a 10000 x 10000 render needs about 37.20 GB of memory (film 3.60 GB, accumulation 32.00 GB,")
+    assert message.startswith("a 10000 x 10000 render needs about 37.20 GB of memory (film 3.60 GB, "
+                              "accumulation 32.00 GB,")
     assert "only 8.00 GB is free" in message and "100,000,000 samples in flight" in message
     assert footprint.check_memory(1920, 1080, schedule.sample_schedule(64, 1920 * 1080),
                                   available=8_000_000_000).total_bytes < 2e9
