@@ -74,7 +74,7 @@ def render_command(args) -> int:
     """``render FOLDER -o OUT [--spp N] [--seed S] [--chunk K/N]``."""
     from .export import EXPORTED_ENTRIES
     from .footprint import NotEnoughMemory, check_memory
-    from .parts import RenderIdentity, scene_fingerprint, schedule_digest, write_part
+    from .parts import RenderIdentity, scene_fingerprint, schedule_digest, software, write_part
     from .render import Refresh, render_chunks
     from .schedule import part_range, sample_schedule
     from .variants import VariantError, activate
@@ -129,8 +129,8 @@ def render_command(args) -> int:
         raise CommandError(f"rendering failed: {one_line(error)} (nothing was written)") from None
     try:
         if chunk:
-            identity = RenderIdentity(scene_fingerprint(scene_file.parent, EXPORTED_ENTRIES), variant, width, height,
-                                      spp, args.seed, len(chunks), schedule_digest(chunks))
+            identity = RenderIdentity(scene_fingerprint(scene_file.parent, EXPORTED_ENTRIES), variant, software(),
+                                      width, height, spp, args.seed, len(chunks), schedule_digest(chunks))
             write_part(output, identity, progress.sums, samples)
         else:
             write_image(output, progress.image)

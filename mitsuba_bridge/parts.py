@@ -22,8 +22,8 @@ import numpy as np
 
 from .schedule import Chunk, Node, PairwiseSum, root, tree_sum
 
-__all__ = ["PART_FORMAT", "RenderIdentity", "PartError", "scene_fingerprint", "schedule_digest", "write_part",
-           "read_part", "merge_parts"]
+__all__ = ["PART_FORMAT", "RenderIdentity", "PartError", "scene_fingerprint", "schedule_digest", "software",
+           "write_part", "read_part", "merge_parts"]
 
 #: ``format`` attribute of a part file.
 PART_FORMAT = "scratch-iridescence/render-part/1"
@@ -41,6 +41,7 @@ class RenderIdentity:
 
     scene: str      #: :func:`scene_fingerprint` of the exported folder
     variant: str    #: Mitsuba variant (CPU and GPU round differently)
+    software: str   #: Mitsuba and Dr.Jit versions (kernels may change between releases)
     width: int
     height: int
     spp: int        #: samples per pixel of the whole render
@@ -66,6 +67,14 @@ def scene_fingerprint(folder, entries: tuple[str, ...]) -> str:
             for block in iter(lambda: stream.read(1 << 20), b""):
                 digest.update(block)
     return digest.hexdigest()
+
+
+def software() -> str:
+    """The Mitsuba and Dr.Jit versions that render here."""
+    import drjit
+    import mitsuba
+
+    return f"mitsuba {mitsuba.__version__}, drjit {drjit.__version__}"
 
 
 def schedule_digest(chunks: list[Chunk]) -> str:

@@ -64,8 +64,8 @@ def main() -> None:
     t_single, _ = best_of(args.repeat, lambda: np.asarray(mi.render(scene, spp=args.spp, seed=0)))
     t_schedule, image = best_of(args.repeat, lambda: render.render_image(scene, args.spp))
     with tempfile.TemporaryDirectory() as folder:
-        identity = parts.RenderIdentity("bench", variant, args.size, args.size, args.spp, 0, len(chunks),
-                                        parts.schedule_digest(chunks))
+        identity = parts.RenderIdentity("bench", variant, parts.software(), args.size, args.size, args.spp, 0,
+                                        len(chunks), parts.schedule_digest(chunks))
         files = []
         count = min(4, len(chunks))
         for k in range(1, count + 1):

@@ -116,9 +116,22 @@ def test08_files_that_are_not_parts_are_refused(whole, folder, thirds, tmp_path,
     (tmp_path / "text.exr").write_text("not an image")
     assert "not an EXR file" in refused(capsys, tmp_path / "text.exr", "-o", tmp_path / "m.exr")
     assert "no such file" in refused(capsys, tmp_path / "none.exr", "-o", tmp_path / "m.exr")
+    (tmp_path / "cut.exr").write_bytes(thirds[0].read_bytes()[:300])  # an interrupted copy
+    assert "not a readable render part" in refused(capsys, tmp_path / "cut.exr", "-o", tmp_path / "m.exr")
 
 
-def test09_merge_runs_as_a_command(thirds, whole, tmp_path):
+def test09_parts_made_with_other_software_are_refused(thirds, tmp_path, capsys, monkeypatch):
+    import OpenEXR
+
+    with OpenEXR.File(str(thirds[1]), separate_channels=True) as file:
+        header, channels = dict(file.header()), {name: c.pixels for name, c in file.channels().items()}
+    header["render.software"] = "mitsuba 3.0.0, drjit 0.4.0"
+    OpenEXR.File(header, channels).write(str(tmp_path / "old.exr"))
+    assert "different renders: software 'mitsuba 3.0.0, drjit 0.4.0' vs" in refused(
+        capsys, thirds[0], tmp_path / "old.exr", thirds[2], "-o", tmp_path / "m.exr")
+
+
+def test10_merge_runs_as_a_command(thirds, whole, tmp_path):
     result = subprocess.run([sys.executable, "-m", "mitsuba_bridge", "merge", *map(str, thirds), "-o",
                              str(tmp_path / "m.exr")], capture_output=True, text=True, cwd=ROOT)
     assert result.returncode == 0, result.stderr
