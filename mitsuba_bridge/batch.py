@@ -102,7 +102,10 @@ def render_command(args) -> int:
         print(f"warning: {scene_file} holds no shapes and no lights: the image is black", file=sys.stderr)
     spp = args.spp or int(sensors[0].sampler().sample_count())
     width, height = (int(c) for c in sensors[0].film().crop_size())
-    chunks = sample_schedule(spp, width * height, args.seed)
+    try:
+        chunks = sample_schedule(spp, width * height, args.seed)
+    except ValueError as error:
+        raise CommandError(str(error), 2) from None
     selected = chunks
     if chunk:
         try:

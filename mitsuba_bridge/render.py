@@ -21,10 +21,10 @@ from typing import Iterable, Iterator
 import numpy as np
 
 from .footprint import NotEnoughMemory, check_memory
-from .schedule import MAX_SAMPLES_PER_PASS, Chunk, PairwiseSum, pass_seed, sample_schedule
+from .schedule import MAX_SAMPLES_PER_PASS, Chunk, PairwiseSum, ScheduleError, pass_seed, sample_schedule
 
 __all__ = ["Progress", "Refresh", "render_passes", "render_chunks", "render_image", "film_pixels", "pass_seed",
-           "sample_schedule", "Chunk", "MAX_SAMPLES_PER_PASS", "NotEnoughMemory"]
+           "sample_schedule", "Chunk", "MAX_SAMPLES_PER_PASS", "NotEnoughMemory", "ScheduleError"]
 
 
 @dataclass(frozen=True)

@@ -38,17 +38,23 @@ from typing import Callable
 
 import numpy as np
 
-__all__ = ["MAX_SAMPLES_PER_PASS", "SMALL_CHUNK_SPP", "Chunk", "Node", "sample_schedule", "chunk_spp", "pass_seed",
-           "part_range", "tree_nodes", "tree_sum", "PairwiseSum"]
+__all__ = ["MAX_SAMPLES_PER_PASS", "MAX_CHUNKS", "SMALL_CHUNK_SPP", "ScheduleError", "Chunk", "Node",
+           "sample_schedule", "chunk_spp", "pass_seed", "part_range", "tree_nodes", "tree_sum", "root", "PairwiseSum"]
 
 #: Samples in flight per ``mi.render`` call; beyond this LLVM and CUDA only use more memory.
 MAX_SAMPLES_PER_PASS = 1 << 22
+#: More chunks than this is a mistake (hours of per-call overhead alone), refused before anything starts.
+MAX_CHUNKS = 1 << 20
 #: Chunks this small never split a pixel between threads (Dr.Jit's narrowest SIMD packet holds 4 samples).
 SMALL_CHUNK_SPP = 4
 #: Dr.Jit's LLVM work block (``jit_llvm_block_size``): full chunks take at most this many spp.
 _BLOCK_SAMPLES = 16384
 #: Calls above this hand out whole 16 384-sample blocks on machines with up to 64 threads.
 _LARGE_CALL_SAMPLES = _BLOCK_SAMPLES * 2 * 64
+
+
+class ScheduleError(ValueError):
+    """A render that cannot be scheduled (no samples, no pixels, far too many chunks, a bad split)."""
 
 
 @dataclass(frozen=True)
@@ -122,10 +128,14 @@ def sample_schedule(spp: int, pixels: int, seed: int = 0) -> list[Chunk]:
     """
     spp, pixels = int(spp), int(pixels)
     if spp < 1:
-        raise ValueError(f"spp must be at least 1, got {spp}")
+        raise ScheduleError(f"spp must be at least 1, got {spp}")
     if pixels < 1:
-        raise ValueError(f"the film must have at least one pixel, got {pixels}")
+        raise ScheduleError(f"the film must have at least one pixel, got {pixels}")
     full = chunk_spp(pixels)
+    count = spp // full + (spp % full) // SMALL_CHUNK_SPP + 2
+    if count > MAX_CHUNKS:
+        raise ScheduleError(f"{spp:,} spp over {pixels:,} pixels would take {count - 2:,} or more render calls "
+                         f"(at most {MAX_CHUNKS:,}): lower the samples")
     sizes = [full] * (spp // full)
     remainder = spp % full
     if full > SMALL_CHUNK_SPP:
@@ -138,10 +148,10 @@ def sample_schedule(spp: int, pixels: int, seed: int = 0) -> list[Chunk]:
 def part_range(part: int, parts: int, chunk_count: int) -> range:
     """Chunk indices of part ``part`` (1-based) of ``parts`` contiguous, near-equal parts."""
     if not 1 <= part <= parts:
-        raise ValueError(f"part {part} of {parts}: expected 1 <= part <= {parts}")
+        raise ScheduleError(f"part {part} of {parts}: expected 1 <= part <= {parts}")
     if parts > chunk_count:
         plural = "s" * (chunk_count != 1)
-        raise ValueError(f"this render has {chunk_count} chunk{plural}: it splits into at most {chunk_count} "
+        raise ScheduleError(f"this render has {chunk_count} chunk{plural}: it splits into at most {chunk_count} "
                          f"part{plural}, not {parts}")
     return range((part - 1) * chunk_count // parts, part * chunk_count // parts)
 

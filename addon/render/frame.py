@@ -102,7 +102,7 @@ def render_frame(engine, depsgraph) -> None:
                 combined.rect.foreach_set(combined_rect(progress.image, description.film.transparent).ravel())
                 engine.update_result(result)
                 break
-    except passes.NotEnoughMemory as error:
+    except (passes.NotEnoughMemory, passes.ScheduleError) as error:
         _fail(engine, f"Mitsuba Scratch: {error}")
     except Exception as error:
         traceback.print_exc()

@@ -82,6 +82,8 @@ CASES = [
     ("output .exr folder", ["render", "{good}", "-o", "{dir}/folder.exr"], None, "is a folder"),
     ("output .jpg", ["render", "{good}", "-o", "{dir}/out.jpg"], None, "must end in .exr or .png"),
     ("output without suffix", ["render", "{good}", "-o", "{dir}/out"], None, "must end in .exr or .png"),
+    ("spp far too many", ["render", "{good}", "-o", "{out}", "--spp", "99999999999"], None,
+     "render calls (at most 1,048,576)"),
     ("chunk 0/3", ["render", "{good}", "-o", "{out}", "--chunk", "0/3"], None, "K must be between 1 and N"),
     ("chunk 4/3", ["render", "{good}", "-o", "{out}", "--chunk", "4/3"], None, "K must be between 1 and N"),
     ("chunk text", ["render", "{good}", "-o", "{out}", "--chunk", "half"], None, "--chunk expects K/N"),

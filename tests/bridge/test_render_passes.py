@@ -32,6 +32,9 @@ def test02_schedule_refuses_what_cannot_be_rendered():
         schedule.sample_schedule(0, 100)
     with pytest.raises(ValueError, match="at least one pixel"):
         schedule.sample_schedule(4, 0)
+    with pytest.raises(schedule.ScheduleError, match="2,000,000,000 spp over 4 pixels would take 500,000,000"):
+        schedule.sample_schedule(2_000_000_000, 2 * 2)  # Blender's Samples field allows it; refused at once
+    assert len(schedule.sample_schedule(4_000_000, 32 * 24)) == 976 + 576  # 976 x 4096 + 576 x 4 spp
 
 
 def test03_chunk_seeds_differ_across_chunks_and_user_seeds():
