@@ -4,15 +4,18 @@ Commands
 --------
 info FILE...      summary of scratch files (validates them)
 generate OUT      write a random scratch file for a flat UV square
-render FOLDER     render a folder exported from Blender ("Export Mitsuba scene") to EXR
+render FOLDER     render a folder exported from Blender ("Export Mitsuba scene") to EXR or PNG
+                  (--chunk K/N: only part K of N of the samples, for render farms)
+merge PART...     combine the parts of one render into its image (bit for bit the whole render)
 validate OUT      the plugin against a brute-force wave field over the direction-cosine plane (figure + numbers)
 """
 from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
-from . import scratch
+from . import batch, scratch
 from .errors import ParameterError
 
 
@@ -43,46 +46,26 @@ def _generate(args) -> int:
     except ParameterError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
-    scratches = scratch.random_scratches(
-        args.count, seed=args.seed, width=width, depth=depth, length=(args.length_min, args.length_max),
-        vertices=args.vertices, curvature=args.curvature,
-        profile=scratch.Profile[args.profile.upper()],
-        depth_variation=tuple(args.depth_variation), width_variation=tuple(args.width_variation))
-    scratch.save(scratches, args.output, compress=args.compress)
+    if args.count < 1:
+        raise batch.CommandError(f"--count must be at least 1, got {args.count}", 2)
+    if not 0 < args.length_min <= args.length_max:
+        raise batch.CommandError(f"need 0 < --length-min <= --length-max, got {args.length_min} and "
+                                 f"{args.length_max}", 2)
+    if not Path(args.output).parent.is_dir():
+        raise batch.CommandError(f"{args.output}: the folder {Path(args.output).parent} does not exist", 2)
+    try:
+        scratches = scratch.random_scratches(
+            args.count, seed=args.seed, width=width, depth=depth, length=(args.length_min, args.length_max),
+            vertices=args.vertices, curvature=args.curvature,
+            profile=scratch.Profile[args.profile.upper()],
+            depth_variation=tuple(args.depth_variation), width_variation=tuple(args.width_variation))
+    except ValueError as error:
+        raise batch.CommandError(str(error), 2) from None
+    try:
+        scratch.save(scratches, args.output, compress=args.compress)
+    except OSError as error:
+        raise batch.CommandError(f"cannot write {args.output}: {error}") from None
     print(f"wrote {args.output}: {scratches!r}")
-    return 0
-
-
-def _render(args) -> int:
-    import time
-
-    from .exr import write_exr
-    from .export import load_folder
-    from .render import render_passes
-    from .variants import VariantError, activate
-
-    try:
-        variant = activate(args.variant)
-    except (ImportError, VariantError) as error:
-        print(f"error: {error}", file=sys.stderr)
-        return 2
-    started = time.perf_counter()
-    try:
-        scene = load_folder(args.folder)
-    except (OSError, RuntimeError) as error:
-        print(f"error: cannot load {args.folder}: {error}", file=sys.stderr)
-        return 1
-    spp = args.spp or scene.sensors()[0].sampler().sample_count()
-    width, height = scene.sensors()[0].film().crop_size()
-    print(f"{args.folder}: {width} x {height}, {spp} spp, {variant}, loaded in {time.perf_counter() - started:.2f} s",
-          flush=True)
-    progress = None
-    for progress in render_passes(scene, spp, seed=args.seed):
-        if not args.quiet:
-            print(f"  {progress.spp_done:6d}/{spp} spp  {100 * progress.fraction:5.1f} %  {progress.seconds:7.1f} s",
-                  flush=True)
-    write_exr(args.output, progress.image)
-    print(f"wrote {args.output} ({progress.seconds:.1f} s of rendering)")
     return 0
 
 
@@ -104,11 +87,28 @@ def _validate(args) -> int:
     return 0
 
 
+class _Parser(argparse.ArgumentParser):
+    """Usage mistakes end in one line, like every other error of the command line."""
+
+    def error(self, message):
+        self.exit(2, f"error: {message} (see {self.prog} --help)\n")
+
+
 def main(argv=None) -> int:
-    """Entry point of ``python -m scratch_iridescence.mitsuba_bridge``."""
-    parser = argparse.ArgumentParser(prog="python -m scratch_iridescence.mitsuba_bridge",
-                                     description=__doc__.split("\n")[0])
-    commands = parser.add_subparsers(dest="command", required=True)
+    """Entry point of ``python -m scratch_iridescence.mitsuba_bridge``: 0 on success, 1 on errors, 2 on usage errors, 130 on Ctrl-C."""
+    try:
+        return _main(argv)
+    except batch.CommandError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return error.status
+    except KeyboardInterrupt:
+        print("interrupted: nothing was written", file=sys.stderr)
+        return 130
+
+
+def _main(argv) -> int:
+    parser = _Parser(prog="python -m scratch_iridescence.mitsuba_bridge", description=__doc__.split("\n")[0])
+    commands = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
     info = commands.add_parser("info", help="summarise and validate scratch files")
     info.add_argument("files", nargs="+")
@@ -130,15 +130,23 @@ def main(argv=None) -> int:
     gen.add_argument("--compress", action="store_true")
     gen.set_defaults(run=_generate)
 
-    render = commands.add_parser("render", help="render an exported scene folder to a linear EXR")
+    render = commands.add_parser("render", help="render an exported scene folder to a linear EXR (or a PNG)")
     render.add_argument("folder", help="folder written by Blender's Export > Mitsuba Scene (or its scene.xml)")
-    render.add_argument("-o", "--output", required=True, help="output .exr (linear RGBA)")
-    render.add_argument("--spp", type=int, default=0, help="samples per pixel (default: the scene's)")
-    render.add_argument("--seed", type=int, default=0)
+    render.add_argument("-o", "--output", required=True,
+                        help="output .exr (linear RGBA) or .png (8-bit sRGB, clipped); written only when complete")
+    render.add_argument("--spp", type=int, default=None, help="samples per pixel (default: the scene's)")
+    render.add_argument("--seed", type=int, default=0, help="0 .. 2**32-1; the same seed gives the same image")
+    render.add_argument("--chunk", metavar="K/N", help="render only part K of N of the sample schedule into an "
+                                                       "EXR part file; combine all N with 'merge'")
     render.add_argument("--variant", default="auto",
                         help="Mitsuba variant (default auto: cuda_ad_spectral when available, else llvm_ad_spectral)")
-    render.add_argument("-q", "--quiet", action="store_true", help="no per-pass progress lines")
-    render.set_defaults(run=_render)
+    render.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
+    render.set_defaults(run=batch.render_command)
+
+    merge = commands.add_parser("merge", help="combine the parts of one render (render --chunk K/N) into its image")
+    merge.add_argument("parts", nargs="+", help="part files (.exr) of the same render, every chunk exactly once")
+    merge.add_argument("-o", "--output", required=True, help="output .exr or .png")
+    merge.set_defaults(run=batch.merge_command)
 
     validate = commands.add_parser("validate", help="compare the plugin with a brute-force wave field (needs "
                                                     "scipy and matplotlib: the dev extras)")

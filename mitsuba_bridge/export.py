@@ -11,36 +11,43 @@ Layout::
 """
 from __future__ import annotations
 
-import contextlib
-import os
 from pathlib import Path
 
+from .atomic import replacing_folder
 from .scene import RenderSettings, SceneDescription
 
-__all__ = ["SCENE_FILE", "export_folder", "load_folder"]
+__all__ = ["SCENE_FILE", "EXPORTED_ENTRIES", "export_folder", "load_folder"]
 
 SCENE_FILE = "scene.xml"
+
+#: What an export owns in its folder; a re-export replaces exactly these (other files stay).
+EXPORTED_ENTRIES = (SCENE_FILE, "meshes", "textures", "scratches")
 
 
 def export_folder(description: SceneDescription, settings: RenderSettings, folder) -> Path:
     """Write ``description`` into ``folder`` (created if needed); returns the scene file.
 
-    A Mitsuba variant must be active (transforms are Mitsuba objects while building).
+    The export is built in a temporary folder and swapped in as a whole
+    (:func:`~mitsuba_bridge.atomic.replacing_folder`): a failed re-export leaves
+    the previous export intact, never an old ``scene.xml`` beside new scratch
+    files.  A Mitsuba variant must be active (transforms are Mitsuba objects
+    while building).
     """
     from .builder import ToFolder, scene_dict
     from .scenexml import write_xml
 
     folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
-    return write_xml(scene_dict(description, settings, ToFolder(folder)), folder / SCENE_FILE)
+    with replacing_folder(folder, EXPORTED_ENTRIES, last=SCENE_FILE) as building:
+        write_xml(scene_dict(description, settings, ToFolder(building)), building / SCENE_FILE)
+    return folder / SCENE_FILE
 
 
 def load_folder(folder):
     """Load an exported folder's scene (the variant and plugins must be active).
 
-    Mitsuba resolves the XML's relative paths against the folder itself; the
-    working directory is moved there too while loading, for plugins that open
-    their files with plain Python.
+    Mitsuba resolves the XML's relative paths (meshes, textures, scratch files)
+    against the scene file's folder; the working directory is left alone (it is
+    global state shared with Blender).
     """
     import mitsuba as mi
 
@@ -48,15 +55,4 @@ def load_folder(folder):
     scene_file = folder / SCENE_FILE if folder.is_dir() else folder
     if not scene_file.is_file():
         raise FileNotFoundError(f"{scene_file}: no such scene file (expected an exported folder holding {SCENE_FILE})")
-    with _working_directory(scene_file.parent):
-        return mi.load_file(str(scene_file.resolve()))
-
-
-@contextlib.contextmanager
-def _working_directory(path):
-    previous = os.getcwd()
-    os.chdir(path)
-    try:
-        yield
-    finally:
-        os.chdir(previous)
+    return mi.load_file(str(scene_file.resolve()))

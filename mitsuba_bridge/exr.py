@@ -10,25 +10,28 @@ __all__ = ["write_exr", "read_exr"]
 _LAYOUTS = {1: "Y", 3: "RGB", 4: "RGBA"}
 
 
-def write_exr(path, image: np.ndarray, *, half: bool = False) -> Path:
+def write_exr(path, image: np.ndarray, *, half: bool = False, header: dict | None = None,
+              channels: dict | None = None) -> Path:
     """Write ``image`` (H, W), (H, W, 3) or (H, W, 4), row 0 at the top, as a ZIP-compressed EXR.
 
     Channels are R, G, B (and A); values are stored as given (linear).
+    ``header`` adds attributes (str, int or float values); ``channels`` adds
+    (H, W) arrays under other names (float32, float16 or uint32).
     """
     import OpenEXR
 
     image = np.asarray(image)
     if image.ndim == 2:
         image = image[..., None]
-    channels = image.shape[2]
-    if channels not in _LAYOUTS:
-        raise ValueError(f"expected 1, 3 or 4 channels, got {channels}")
+    count = image.shape[2]
+    if count not in _LAYOUTS:
+        raise ValueError(f"expected 1, 3 or 4 channels, got {count}")
     pixels = np.ascontiguousarray(image, dtype=np.float16 if half else np.float32)
-    if channels == 1:
+    if count == 1:
         pixels = pixels[..., 0]
-    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    attributes = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage, **(header or {})}
     path = Path(path)
-    OpenEXR.File(header, {_LAYOUTS[channels]: pixels}).write(str(path))
+    OpenEXR.File(attributes, {_LAYOUTS[count]: pixels, **(channels or {})}).write(str(path))
     return path
 
 

@@ -1,33 +1,50 @@
-"""Progressive rendering: many short ``mi.render`` passes averaged into one image.
+"""Progressive rendering: the chunks of a fixed sample schedule, summed into one image.
 
-Short passes give progress updates, let a caller cancel within one pass and
-bound memory (one pass holds ``pixels × pass spp`` samples in flight).  With
-Mitsuba's independent sampler every pass is an unbiased estimate, so the
-spp-weighted mean of the passes is exactly the image one long render gives.
+Chunks give progress updates, let a caller cancel within one chunk and bound
+memory (one chunk holds ``pixels × chunk spp`` samples in flight).  With
+Mitsuba's independent sampler every chunk is an unbiased estimate, so the
+spp-weighted mean of the chunks is the image one long render gives.
+
+The schedule (:func:`~mitsuba_bridge.schedule.sample_schedule`) depends only on
+spp, the pixel count and the seed, and the chunks are summed in one fixed order
+(:class:`~mitsuba_bridge.schedule.PairwiseSum`), so the image is the same bit
+for bit whatever the machine load.  Time only decides how often a caller shows
+the running mean (:class:`Refresh`).
 """
 from __future__ import annotations
 
+import functools
 import time
 from dataclasses import dataclass
-from typing import Iterator
+from typing import Iterable, Iterator
 
 import numpy as np
 
-__all__ = ["Progress", "render_passes", "render_image", "pass_seed", "plan_pass"]
+from .footprint import NotEnoughMemory, check_memory
+from .schedule import MAX_SAMPLES_PER_PASS, Chunk, PairwiseSum, ScheduleError, pass_seed, sample_schedule
 
-#: Samples in flight per pass; beyond this LLVM and CUDA only use more memory.
-MAX_SAMPLES_PER_PASS = 1 << 22
+__all__ = ["Progress", "Refresh", "render_passes", "render_chunks", "render_image", "film_pixels", "pass_seed",
+           "sample_schedule", "Chunk", "MAX_SAMPLES_PER_PASS", "NotEnoughMemory", "ScheduleError"]
 
 
 @dataclass(frozen=True)
 class Progress:
-    """State after one pass; ``image`` is the running mean, (H, W, 4) float32 RGBA, row 0 at the top."""
+    """State after one chunk.
+
+    ``image`` is the running mean, (H, W, 4) float32 RGBA, row 0 at the top,
+    computed when first asked for (a display that refreshes once a second pays
+    for one mean a second, not one per chunk) from the sums held after this
+    chunk, so it stays right after later chunks.  ``sums`` is the live
+    accumulator (its tree nodes are what a part file stores).
+    """
 
     index: int
     spp_done: int
     spp_total: int
     seconds: float
-    image: np.ndarray
+    chunk: Chunk
+    sums: PairwiseSum
+    partials: tuple  #: the sums' partial images after this chunk (never modified in place)
 
     @property
     def fraction(self) -> float:
@@ -37,56 +54,74 @@ class Progress:
     def finished(self) -> bool:
         return self.spp_done >= self.spp_total
 
+    @functools.cached_property
+    def image(self) -> np.ndarray:
+        return (PairwiseSum.fold(self.partials) / self.spp_done).astype(np.float32)
 
-def pass_seed(seed: int, index: int) -> int:
-    """A distinct 32-bit sampler seed per (user seed, pass) pair."""
-    return (int(seed) * 0x9E3779B1 + int(index)) & 0xFFFFFFFF
 
+class Refresh:
+    """Says when a caller should show the running image again: at most every ``seconds``, and at the end.
 
-def plan_pass(remaining: int, pixels: int, seconds_per_spp: float | None, pass_seconds: float) -> int:
-    """Samples per pixel of the next pass.
-
-    The first pass takes one sample (it also compiles the kernels), later ones
-    as many as fit in ``pass_seconds``, rounded down to a power of two so that
-    the few distinct pass sizes reuse compiled kernels.
+    Only the display depends on it; the image itself never depends on time.
     """
-    if seconds_per_spp is None:
-        budget = 1
-    else:
-        budget = int(pass_seconds / max(seconds_per_spp, 1e-9))
-    budget = min(budget, remaining, max(1, MAX_SAMPLES_PER_PASS // max(pixels, 1)))
-    return 1 << (max(budget, 1).bit_length() - 1)
+
+    def __init__(self, seconds: float = 1.0):
+        self.seconds = float(seconds)
+        self._last: float | None = None
+
+    def due(self, progress: Progress) -> bool:
+        now = time.perf_counter()
+        if progress.finished or self._last is None or now - self._last >= self.seconds:
+            self._last = now
+            return True
+        return False
 
 
-def render_passes(scene, spp: int, *, seed: int = 0, pass_seconds: float = 1.0) -> Iterator[Progress]:
-    """Render ``scene`` with ``spp`` samples per pixel in passes, yielding the mean after each.
+def film_pixels(scene) -> int:
+    """Pixels of the scene's film (its crop window)."""
+    width, height = (int(c) for c in scene.sensors()[0].film().crop_size())
+    return width * height
 
-    Stop iterating to cancel: no work is left behind.
+
+def render_chunks(scene, chunks: Iterable[Chunk], spp_total: int) -> Iterator[Progress]:
+    """Render the given ``chunks`` (consecutive ones of a schedule) in order and yield the running mean after each.
+
+    ``spp_total`` is the sum of their spp (for ``fraction``).  Stop iterating to
+    cancel: no work is left behind.
     """
     import mitsuba as mi
 
+    chunks = list(chunks)
+    indices = [chunk.index for chunk in chunks]
+    if indices and indices != list(range(indices[0], indices[0] + len(indices))):
+        raise ValueError("render_chunks needs consecutive chunks of one schedule (the sums follow their indices)")
+    sums, done, start = PairwiseSum(chunks[0].index if chunks else 0), 0, time.perf_counter()
+    for number, chunk in enumerate(chunks, start=1):
+        image = np.asarray(mi.render(scene, spp=chunk.spp, seed=chunk.seed), dtype=np.float32)
+        # float32 × an integer below 2**29 is exact in float64: the only rounding is in the fixed-order sum.
+        sums.add(image.astype(np.float64) * chunk.spp)
+        done += chunk.spp
+        yield Progress(number, done, spp_total, time.perf_counter() - start, chunk, sums, sums.partials())
+
+
+def render_passes(scene, spp: int, *, seed: int = 0) -> Iterator[Progress]:
+    """Render ``scene`` with ``spp`` samples per pixel chunk by chunk, yielding the running mean after each.
+
+    The chunks are :func:`sample_schedule` ``(spp, pixels, seed)``.  Stop
+    iterating to cancel: no work is left behind.  Raises
+    :class:`~mitsuba_bridge.footprint.NotEnoughMemory` (before rendering) when
+    the estimated memory exceeds what is free.
+    """
     if spp < 1:
         raise ValueError("spp must be at least 1")
     width, height = (int(c) for c in scene.sensors()[0].film().crop_size())
-    total = None
-    done, index, seconds_per_spp = 0, 0, None
-    start = time.perf_counter()
-    while done < spp:
-        count = plan_pass(spp - done, width * height, seconds_per_spp, pass_seconds)
-        began = time.perf_counter()
-        image = np.asarray(mi.render(scene, spp=count, seed=pass_seed(seed, index)), dtype=np.float32)
-        elapsed = time.perf_counter() - began
-        # The first pass includes kernel compilation, so the second stays short too;
-        # from the third on, passes fill ``pass_seconds``.
-        seconds_per_spp = elapsed / count
-        total = image * count if total is None else total + image * count
-        done += count
-        index += 1
-        yield Progress(index, done, spp, time.perf_counter() - start, total / done)
+    chunks = sample_schedule(spp, width * height, seed)
+    check_memory(width, height, chunks)  # before any film is allocated
+    return render_chunks(scene, chunks, spp)
 
 
 def render_image(scene, spp: int, *, seed: int = 0) -> np.ndarray:
-    """The finished (H, W, 4) image of :func:`render_passes`."""
+    """The finished (H, W, 4) float32 image of :func:`render_passes` (the same bits on every run)."""
     progress = None
     for progress in render_passes(scene, spp, seed=seed):
         pass

@@ -21,8 +21,9 @@ MITSUBA_MISSING = (
     "built for your platform (it bundles the mitsuba, drjit and OpenEXR wheels), or install "
     "'mitsuba==3.9.1 drjit==1.5.0' into Blender's Python, then restart Blender")
 
-#: Target duration of one progressive pass: the image refreshes and Esc is honoured this often.
-PASS_SECONDS = 1.0
+#: The image in Blender refreshes at most this often (Esc is honoured after every chunk). Only the
+#: display depends on time: the chunks and so the image are fixed by samples, resolution and seed.
+REFRESH_SECONDS = 1.0
 
 
 def combined_rect(image: np.ndarray, transparent: bool) -> np.ndarray:
@@ -86,19 +87,25 @@ def render_frame(engine, depsgraph) -> None:
                                 f"({description.triangle_count:,} triangles)")
         mi_scene = builder.load_scene(description, settings)
         combined = result.layers[0].passes["Combined"]
-        for progress in passes.render_passes(mi_scene, settings.spp, seed=settings.seed,
-                                             pass_seconds=PASS_SECONDS):
-            # foreach_set copies in bulk: assigning ``rect`` goes pixel by pixel (about 1 s for 1080p).
-            combined.rect.foreach_set(combined_rect(progress.image, description.film.transparent).ravel())
-            engine.update_result(result)
+        refresh = passes.Refresh(REFRESH_SECONDS)
+        for progress in passes.render_passes(mi_scene, settings.spp, seed=settings.seed):
             engine.update_progress(progress.fraction)
-            status = f"Sample {progress.spp_done}/{progress.spp_total} | {progress.seconds:.1f} s"
-            engine.update_stats("", f"Mitsuba ({variant}) | {status}")
-            if bpy.app.background:  # a console render shows its progress, as Cycles' does
-                print(f"Fra:{scene.frame_current} | Mitsuba Scratch | {status}", flush=True)
+            if refresh.due(progress):
+                # foreach_set copies in bulk: assigning ``rect`` goes pixel by pixel (about 1 s for 1080p).
+                combined.rect.foreach_set(combined_rect(progress.image, description.film.transparent).ravel())
+                engine.update_result(result)
+                status = f"Sample {progress.spp_done}/{progress.spp_total} | {progress.seconds:.1f} s"
+                engine.update_stats("", f"Mitsuba ({variant}) | {status}")
+                if bpy.app.background:  # a console render shows its progress, as Cycles' does
+                    print(f"Fra:{scene.frame_current} | Mitsuba Scratch | {status}", flush=True)
             if not progress.finished and engine.test_break():
                 cancelled = True
+                # The image keeps every sample done so far, not only those shown at the last refresh.
+                combined.rect.foreach_set(combined_rect(progress.image, description.film.transparent).ravel())
+                engine.update_result(result)
                 break
+    except (passes.NotEnoughMemory, passes.ScheduleError) as error:
+        _fail(engine, f"Mitsuba Scratch: {error}")
     except Exception as error:
         traceback.print_exc()
         _fail(engine, f"Mitsuba Scratch: rendering failed: {type(error).__name__}: {error}")

@@ -163,16 +163,16 @@ def test_animation_renders_every_frame(lit, tmp_path):
     assert bright_centroid(first, 2.0)[0] < 12 and bright_centroid(second, 2.0)[0] > 20
 
 
-def test_progress_reaches_one_and_cancel_stops_within_a_pass(recording, lit, tmp_path):
+def test_progress_reaches_one_and_cancel_stops_within_a_chunk(recording, lit, tmp_path):
     lit.render.engine = RecordingEngine.bl_idname
-    lit.scratch_iridescence.samples = 64
+    lit.scratch_iridescence.samples = 67  # 32 x 24 pixels: sixteen chunks of 4 spp, then 2 and 1
     render_to(lit, tmp_path / "done.exr")
-    assert recording.progress[-1] == 1.0 and len(recording.progress) >= 2
+    assert recording.progress == pytest.approx([n / 67 for n in range(4, 65, 4)] + [66 / 67, 1.0])
     recording.progress.clear()
     recording.cancel_after = 1
-    lit.scratch_iridescence.samples = 100_000
+    lit.scratch_iridescence.samples = 1_000_000  # full chunks of 4096 spp
     image = render_to(lit, tmp_path / "cancelled.exr")
-    assert len(recording.progress) == 1 and recording.progress[0] < 0.01  # stopped after the first pass
+    assert recording.progress == pytest.approx([4096 / 1_000_000])  # stopped after the first chunk
     assert image[..., :3].mean() > 0.1  # what was rendered is kept, as Cycles does
     assert any("cancelled" in message for _, message in recording.reports)
 
@@ -202,6 +202,16 @@ def test_no_camera_is_refused_before_rendering(empty_scene, tmp_path):
     with pytest.raises(RuntimeError, match="camera"):
         bpy.ops.render.render(write_still=True)
     assert not (tmp_path / "none.exr").exists()
+
+
+def test_a_render_bigger_than_free_memory_is_refused_with_the_estimate(lit, tmp_path, monkeypatch):
+    from scratch_iridescence.mitsuba_bridge import footprint
+
+    monkeypatch.setattr(footprint, "available_memory_bytes", lambda: 10_000)  # 32 x 24 needs about 0.2 MB
+    lit.render.filepath = str(tmp_path / "big.exr")
+    with pytest.raises(RuntimeError, match=r"a 32 x 24 render needs about 0\.\d MB of memory .* only 0\.0 MB is free"):
+        bpy.ops.render.render(write_still=True)
+    assert not (tmp_path / "big.exr").exists()
 
 
 def test_rendering_error_is_reported_not_a_black_image(empty_scene, tmp_path, monkeypatch):

@@ -301,6 +301,19 @@ def test_object_without_uvs_or_scratches_renders_silently(staged):
     assert gather(staged).warnings == ()
 
 
+def test_a_nan_vertex_drops_its_triangles_with_a_warning(staged):
+    plane = add_plane(staged, size=2.0)
+    plane.data.calc_loop_triangles()
+    corner = next(v for v in range(4) if sum(v in t.vertices for t in plane.data.loop_triangles) == 1)
+    plane.data.vertices[corner].co = (math.nan, 0.0, 0.0)  # as a broken driver or script leaves it
+    add_light(staged, "SUN")
+    description = gather(staged)
+    (shape,) = description.shapes
+    assert shape.mesh.triangle_count == 1 and np.isfinite(shape.mesh.positions[shape.mesh.faces]).all()
+    assert description.warnings == (f"mesh '{plane.name}': 1 of 2 triangles have NaN or infinite vertex "
+                                    "positions or UVs and are not rendered",)
+
+
 def test_empty_scene_warns_that_the_image_is_black(staged):
     assert any("no visible objects" in w for w in gather(staged).warnings)
     add_plane(staged)

@@ -1,4 +1,5 @@
 """Export folders: scene.xml + PLY + textures (+ scratch files), rendered without Blender."""
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -61,11 +62,11 @@ def test02_exported_folder_renders_like_the_in_memory_scene(variant, tmp_path):
     export.export_folder(description, S.RenderSettings(spp=4), tmp_path / "out")
     moved = tmp_path / "moved"
     (tmp_path / "out").rename(moved)  # a self-contained folder still renders after moving
-    # One mi.render each with the same seed (render_image splits passes by measured time: other samples).
-    import mitsuba as mi
+    # The same schedule and seed: the same samples (a fixed schedule, whatever the timing).
+    from scratch_iridescence.mitsuba_bridge import render
 
-    from_files = np.asarray(mi.render(export.load_folder(moved), spp=16, seed=3))
-    in_memory = np.asarray(mi.render(builder.load_scene(description, S.RenderSettings()), spp=16, seed=3))
+    from_files = render.render_image(export.load_folder(moved), 16, seed=3)
+    in_memory = render.render_image(builder.load_scene(description, S.RenderSettings()), 16, seed=3)
     assert from_files.shape == (20, 30, 4)
     assert np.allclose(from_files, in_memory, atol=1e-4)
 
@@ -116,3 +117,54 @@ def test07_exr_round_trips_rgb_and_rgba(tmp_path):
         image = np.random.default_rng(channels).random((5, 7, channels)).astype(np.float32)
         write_exr(tmp_path / "a.exr", image)
         assert np.array_equal(read_exr(tmp_path / "a.exr"), image)
+
+
+def scratched_scene(count, seed):
+    from scratch_iridescence.mitsuba_bridge import scratch
+
+    plate = S.ScratchedMetal(scratches=scratch.random_scratches(count, seed=seed), coherence_diameter_m=30e-6)
+    return simple_scene(shapes=[S.Shape("plate", quad(1.0, "plate"), np.eye(4), "plate")],
+                        materials={"plate": plate}, world=S.ConstantWorld((0.5, 0.5, 0.5)))
+
+
+def folder_bytes(folder):
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def test08_a_failed_re_export_leaves_the_previous_export_whole(variant, tmp_path, monkeypatch):
+    export.export_folder(scratched_scene(20, seed=1), S.RenderSettings(), tmp_path / "out")
+    (tmp_path / "out" / "notes.txt").write_text("mine")
+    before = folder_bytes(tmp_path / "out")
+
+    def full_disk(path, *args, **kwargs):
+        assert (Path(path).parents[1] / "scratches" / "plate.npz").is_file()  # the new scratches are written
+        raise OSError(28, "No space left on device")
+
+    # Scratch files are written before meshes: the failure comes after the new scratch file exists.
+    monkeypatch.setattr("mitsuba_bridge.ply.write_ply", full_disk)
+    with pytest.raises(OSError, match="No space left"):
+        export.export_folder(scratched_scene(30, seed=2), S.RenderSettings(), tmp_path / "out")
+    assert folder_bytes(tmp_path / "out") == before  # old scene.xml with its own scratches, the user's file
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["meshes", "notes.txt", "scene.xml", "scratches"]
+
+
+def test09_a_re_export_replaces_the_exported_files_and_keeps_others(variant, tmp_path):
+    from scratch_iridescence.mitsuba_bridge import scratch
+
+    export.export_folder(scratched_scene(20, seed=1), S.RenderSettings(), tmp_path / "out")
+    (tmp_path / "out" / "render.exr").write_bytes(b"the user's render")
+    export.export_folder(simple_scene(), S.RenderSettings(), tmp_path / "out")  # no scratches any more
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["meshes", "render.exr", "scene.xml"]
+    assert (tmp_path / "out" / "render.exr").read_bytes() == b"the user's render"
+    export.export_folder(scratched_scene(30, seed=2), S.RenderSettings(), tmp_path / "out")
+    assert scratch.load(tmp_path / "out" / "scratches" / "plate.npz").count == 30
+
+
+def test10_loading_a_folder_leaves_the_working_directory_alone(variant, tmp_path, monkeypatch):
+    export.export_folder(scratched_scene(20, seed=1), S.RenderSettings(), tmp_path / "out")
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)  # relative paths in scene.xml must resolve against the folder, not here
+    scene = export.load_folder(tmp_path / "out")
+    assert os.getcwd() == str(elsewhere)
+    assert "scratches=20," in str(scene.shapes()[0].bsdf())

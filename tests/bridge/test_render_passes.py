@@ -1,29 +1,85 @@
-"""Progressive passes: planning, seeds, and the running mean."""
+"""Progressive rendering: the fixed sample schedule, its summation tree, and the running mean."""
+import time
+
 import numpy as np
 import pytest
 
 from bridge_scenes import simple_scene
-from scratch_iridescence.mitsuba_bridge import builder, render
+from scratch_iridescence.mitsuba_bridge import builder, render, schedule
 from scratch_iridescence.mitsuba_bridge import scene as S
 
 
-def test01_first_pass_takes_one_sample_then_passes_fill_the_target_time():
-    assert render.plan_pass(100, 1000, None, 1.0) == 1
-    assert render.plan_pass(100, 1000, 0.1, 1.0) == 8      # 10 fit: largest power of two below
-    assert render.plan_pass(5, 1000, 0.001, 1.0) == 4      # never more than what remains
-    assert render.plan_pass(100, 1000, 10.0, 1.0) == 1     # slow passes still take a sample
+def test01_schedule_adds_up_to_spp_in_power_of_two_chunks_within_the_memory_bound():
+    for spp in (1, 7, 64, 100, 1000, 4097):
+        for pixels in (1, 768, 512 * 512, 1920 * 1080, 10_000 ** 2):
+            chunks = schedule.sample_schedule(spp, pixels, seed=3)
+            sizes = [c.spp for c in chunks]
+            assert sum(sizes) == spp and [c.index for c in chunks] == list(range(len(chunks)))
+            assert all(size & (size - 1) == 0 for size in sizes)  # powers of two
+            assert sizes == sorted(sizes, reverse=True)
+            assert all(size * pixels <= max(schedule.MAX_SAMPLES_PER_PASS, pixels) for size in sizes)
+            assert set(sizes) <= {sizes[0], 4, 2, 1}  # at most four compiled kernels
+            # One pixel, one thread: small chunks, or whole Dr.Jit blocks of a call large for 64 threads.
+            assert all(size <= 4 or (16384 % size == 0 and pixels * size > 16384 * 2 * 64) for size in sizes)
+    assert [c.spp for c in schedule.sample_schedule(100, 512 * 512)] == [16] * 6 + [4]
+    assert [c.spp for c in schedule.sample_schedule(4096 + 67, 32 * 24)] == [4096] + [4] * 16 + [2, 1]
+    assert [c.spp for c in schedule.sample_schedule(64, 2 * 2)] == [4] * 16  # a tiny film: small chunks only
+    assert schedule.sample_schedule(5, 4096 * 4096) == schedule.sample_schedule(5, 4096 * 4096)
 
 
-def test02_passes_are_bounded_by_memory_on_big_images():
-    pixels = 1024 * 1024
-    assert render.plan_pass(1024, pixels, 1e-9, 1.0) * pixels == render.MAX_SAMPLES_PER_PASS
-    assert render.plan_pass(1024, 4096 * 4096, 1e-9, 1.0) == 1  # one sample per pass at least
+def test02_schedule_refuses_what_cannot_be_rendered():
+    with pytest.raises(ValueError, match="spp must be at least 1"):
+        schedule.sample_schedule(0, 100)
+    with pytest.raises(ValueError, match="at least one pixel"):
+        schedule.sample_schedule(4, 0)
+    with pytest.raises(schedule.ScheduleError, match="2,000,000,000 spp over 4 pixels would take 500,000,000"):
+        schedule.sample_schedule(2_000_000_000, 2 * 2)  # Blender's Samples field allows it; refused at once
+    assert len(schedule.sample_schedule(4_000_000, 32 * 24)) == 976 + 576  # 976 x 4096 + 576 x 4 spp
 
 
-def test03_pass_seeds_differ_across_passes_and_user_seeds():
+def test03_chunk_seeds_differ_across_chunks_and_user_seeds():
     seeds = {render.pass_seed(seed, index) for seed in range(20) for index in range(200)}
     assert len(seeds) == 20 * 200
     assert all(0 <= s < 2 ** 32 for s in seeds)
+    assert [c.seed for c in schedule.sample_schedule(64, 10 ** 6, seed=7)] == [
+        render.pass_seed(7, i) for i in range(16)]
+
+
+def test04_parts_cover_the_schedule_and_their_tree_nodes_sum_to_the_single_machine_total_bit_for_bit():
+    rng = np.random.default_rng(0)
+    for count in range(1, 41):
+        # Values spanning many magnitudes (glints beside dark pixels) make float64 rounding order-dependent.
+        leaves = rng.random((count, 5)) * 10.0 ** rng.integers(-8, 8, (count, 5))
+        sums = schedule.PairwiseSum()
+        for leaf in leaves:
+            sums.add(leaf)
+        whole = sums.total()
+        assert whole.tobytes() == schedule.tree_sum(schedule.root(count), count,
+                                                    lambda n: leaves[n.index] if n.level == 0 else None).tobytes()
+        for parts in range(1, count + 1):
+            stored = {}
+            for part in range(1, parts + 1):
+                run = schedule.part_range(part, parts, count)
+                part_sums = schedule.PairwiseSum(start=run.start)
+                for index in run:
+                    part_sums.add(leaves[index])
+                nodes = part_sums.node_sums(count)
+                covered = sorted(i for n in nodes for i in range(n.start, min(n.stop, count)))
+                assert covered == list(run)
+                for node, value in nodes.items():  # a part computes its nodes as the tree does
+                    tree = schedule.tree_sum(node, count, lambda n: leaves[n.index] if n.level == 0 else None)
+                    assert value.tobytes() == tree.tobytes()
+                stored.update(nodes)
+            merged = schedule.tree_sum(schedule.root(count), count, stored.get)
+            assert merged.tobytes() == whole.tobytes(), (count, parts)
+
+
+def test05_parts_split_at_most_into_as_many_as_there_are_chunks():
+    assert list(schedule.part_range(2, 3, 10)) == [3, 4, 5]
+    with pytest.raises(ValueError, match="at most 2 parts, not 3"):
+        schedule.part_range(1, 3, 2)
+    with pytest.raises(ValueError, match="1 <= part <= 3"):
+        schedule.part_range(4, 3, 10)
 
 
 @pytest.fixture(scope="module")
@@ -33,15 +89,14 @@ def lit_scene(variant):
     return builder.load_scene(description, S.RenderSettings())
 
 
-def test04_passes_add_up_to_the_requested_samples_and_report_progress(lit_scene):
-    steps = list(render.render_passes(lit_scene, 37, pass_seconds=0.01))
-    assert steps[-1].spp_done == 37 and steps[-1].finished
-    assert [p.spp_done for p in steps] == sorted({p.spp_done for p in steps})
-    assert steps[0].fraction == pytest.approx(1 / 37)
+def test06_chunks_add_up_to_the_requested_samples_and_report_progress(lit_scene):
+    steps = list(render.render_passes(lit_scene, 37))
+    assert [p.spp_done for p in steps] == list(range(4, 37, 4)) + [37] and steps[-1].finished  # 9 x 4 + 1
+    assert steps[0].fraction == pytest.approx(4 / 37)
     assert steps[-1].image.shape == (24, 32, 4) and steps[-1].image.dtype == np.float32
 
 
-def test05_running_mean_is_the_spp_weighted_mean_of_the_passes(lit_scene, monkeypatch):
+def test07_running_mean_is_the_spp_weighted_mean_of_the_chunks(lit_scene, monkeypatch):
     import mitsuba as mi
 
     calls = []
@@ -49,29 +104,70 @@ def test05_running_mean_is_the_spp_weighted_mean_of_the_passes(lit_scene, monkey
 
     def spy(scene, spp, seed):
         image = original(scene, spp=spp, seed=seed)
-        calls.append((spp, np.asarray(image)))
+        calls.append((spp, seed, np.asarray(image)))
         return image
 
     monkeypatch.setattr(mi, "render", spy)
-    final = list(render.render_passes(lit_scene, 13, pass_seconds=0.01))[-1].image
-    expected = sum(spp * image for spp, image in calls) / sum(spp for spp, _ in calls)
+    steps = list(render.render_passes(lit_scene, 13, seed=4))
+    final = steps[-1].image
+    assert np.array_equal(steps[0].image, calls[0][2])  # an early mean, asked for late, is still that chunk's
+    expected = sum(spp * image for spp, _, image in calls) / sum(spp for spp, _, _ in calls)
     assert np.allclose(final, expected, atol=1e-6)
-    assert len({seed for seed in range(len(calls))}) == len(calls)
+    assert [(spp, seed) for spp, seed, _ in calls] == [(c.spp, c.seed)
+                                                       for c in schedule.sample_schedule(13, 32 * 24, 4)]
 
 
-def test06_more_samples_reduce_the_noise(lit_scene):
+def test08_more_samples_reduce_the_noise(lit_scene):
     reference = render.render_image(lit_scene, 512, seed=99)[..., :3]
     error = [np.abs(render.render_image(lit_scene, spp, seed=1)[..., :3] - reference).mean() for spp in (1, 64)]
     assert error[1] < 0.5 * error[0]
 
 
-def test07_stopping_the_iteration_cancels_without_rendering_further(lit_scene, monkeypatch):
+def test09_stopping_the_iteration_cancels_without_rendering_further(lit_scene, monkeypatch):
     import mitsuba as mi
 
     count = []
     original = mi.render
     monkeypatch.setattr(mi, "render", lambda *a, **k: (count.append(1), original(*a, **k))[1])
-    for progress in render.render_passes(lit_scene, 10_000, pass_seconds=0.01):
+    for progress in render.render_passes(lit_scene, 100_000):
         if progress.index == 2:
             break
     assert len(count) == 2
+
+
+def test10_a_tiny_film_renders_the_same_bits_every_time(variant):
+    """One pixel at 256 spp: one call would split the pixel's samples between threads, whose atomic adds
+    land in any order under load (measured: 4 different images in 4 single calls at 4 x 4 pixels x 65 536
+    spp); the schedule's 4-spp chunks keep each pixel in one thread."""
+    description = simple_scene(film=S.Film(1, 1), lights=[S.PointLight((0, 0, 2), (1.0, 1.0, 1.0))],
+                               world=S.ConstantWorld((0.2, 0.2, 0.2)))
+    scene = builder.load_scene(description, S.RenderSettings())
+    images = {render.render_image(scene, 256, seed=5).tobytes() for _ in range(3)}
+    assert len(images) == 1
+
+
+def test11_the_image_is_the_same_bit_for_bit_whatever_the_timing(lit_scene, monkeypatch):
+    """Slow and uneven chunks (a busy machine) and a display refreshed at other moments change nothing."""
+    import mitsuba as mi
+
+    spp = 4096 + 7  # several chunks of several sizes
+    quiet = render.render_image(lit_scene, spp, seed=11)
+    original, delays = mi.render, iter(np.random.default_rng(1).uniform(0, 0.05, 100))
+
+    def busy(*args, **kwargs):
+        time.sleep(next(delays))
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(mi, "render", busy)
+    refresh, shown = render.Refresh(0.02), []
+    for progress in render.render_passes(lit_scene, spp, seed=11):
+        if refresh.due(progress):
+            shown.append(progress.spp_done)
+    assert shown[-1] == spp
+    assert progress.image.tobytes() == quiet.tobytes()
+
+
+def test12_chunks_must_be_consecutive():
+    chunks = schedule.sample_schedule(37, 32 * 24)
+    with pytest.raises(ValueError, match="consecutive chunks"):
+        next(render.render_chunks(None, [chunks[0], chunks[2]], 8))

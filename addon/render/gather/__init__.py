@@ -10,6 +10,7 @@ import numpy as np
 
 from ....mitsuba_bridge.scene import (Emission, MeshData, RenderSettings, SceneDescription, ScratchedMetal,
                                       Shape, Texture)
+from ....mitsuba_bridge.finite import with_finite_meshes
 from ....mitsuba_bridge.scratch import ScratchFormatError, ScratchSet
 from ...storage import has_scratches, read_scratches
 from .camera import gather_camera, gather_film
@@ -61,8 +62,10 @@ def gather_scene(depsgraph, *, camera=None) -> SceneDescription:
     elif not lights and world is None and not any(_emits(m) for m in materials.values()):
         warnings.warn("the scene has no lights, no emissive material and a black world: the image is black; "
                       "add a light or a world colour")
-    return SceneDescription(film=film, camera=camera_description, shapes=tuple(shapes), materials=materials,
-                            lights=tuple(lights), world=world, warnings=warnings.as_tuple())
+    # NaN/inf vertices (a broken modifier or driver) would blacken the image silently: drop them, with a warning.
+    return with_finite_meshes(SceneDescription(film=film, camera=camera_description, shapes=tuple(shapes),
+                                               materials=materials, lights=tuple(lights), world=world,
+                                               warnings=warnings.as_tuple()))
 
 
 def _emits(material) -> bool:
