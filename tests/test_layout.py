@@ -51,7 +51,7 @@ def test_the_bridge_has_one_import_name_and_one_plugin_class():
     code = """
 import sys
 try:
-    from scratch_iridescence import mitsuba_bridge
+    import mitsuba_bridge
 except ImportError as error:
     print('refused:', error)
 import mitsuba as mi
