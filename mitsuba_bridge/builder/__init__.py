@@ -7,14 +7,14 @@ A Mitsuba variant must be active before calling anything here.
 """
 from __future__ import annotations
 
-from ..scene import RenderSettings, SceneDescription
+from ..scene import Mask, RenderSettings, SceneDescription, Transparent, walk_materials
 from .camera import film_dict, integrator_dict, sensor_dict
 from .lights import light_dict, world_dict
-from .materials import bsdf_dict, emitter_dict
+from .materials import add_weights, bsdf_dict, emitter_dict
 from .resources import InMemory, ToFolder, safe_name
 
 __all__ = ["scene_dict", "load_scene", "InMemory", "ToFolder", "sensor_dict", "film_dict", "integrator_dict",
-           "bsdf_dict", "emitter_dict", "light_dict", "world_dict", "material_id"]
+           "bsdf_dict", "emitter_dict", "add_weights", "light_dict", "world_dict", "material_id"]
 
 
 def material_id(key: str) -> str:
@@ -33,7 +33,8 @@ def scene_dict(description: SceneDescription, settings: RenderSettings, resource
     shared = isinstance(resources, ToFolder)
     result: dict = {
         "type": "scene",
-        "integrator": integrator_dict(settings, description.film),
+        "integrator": integrator_dict(settings, description.film,
+                                      see_through_surfaces=_has_see_through_surfaces(description)),
         "sensor": sensor_dict(description.camera, description.film, settings),
     }
     bsdfs = {key: bsdf_dict(material, resources, key=key) for key, material in description.materials.items()
@@ -52,6 +53,11 @@ def scene_dict(description: SceneDescription, settings: RenderSettings, resource
     if description.world is not None:
         result["world"] = world_dict(description.world, resources)
     return result
+
+
+def _has_see_through_surfaces(description: SceneDescription) -> bool:
+    return any(isinstance(part, (Mask, Transparent)) for material in description.materials.values()
+               for part in walk_materials(material))
 
 
 def load_scene(description: SceneDescription, settings: RenderSettings):
