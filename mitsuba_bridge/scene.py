@@ -27,6 +27,7 @@ from typing import Optional, Union
 import numpy as np
 
 from .scratch import ScratchSet
+from .shading import Add, Bump, Checker, Dielectric, Mask, Mix, NormalMap, Translucent, Transparent
 
 __all__ = [
     "RGB", "Film", "Camera", "Texture", "Checker", "Diffuse", "Principled", "Glossy", "Emission", "ScratchedMetal",
@@ -133,15 +134,6 @@ class Texture:
             raise ValueError(f"texture {self.name!r}: give exactly one of path and pixels")
 
 
-@dataclass(frozen=True)
-class Checker:
-    """Blender's Checker Texture in UV space: ``scale`` squares per UV unit, ``color2`` in the square at the origin."""
-
-    color1: RGB = (0.8, 0.8, 0.8)
-    color2: RGB = (0.2, 0.2, 0.2)
-    scale: float = 5.0
-
-
 Value = Union[float, RGB, Texture, Checker]
 
 
@@ -198,75 +190,6 @@ class ScratchedMetal:
     material: str = "Al"
     coherent: bool = True
     diffuse_reflectance: Optional[RGB] = None
-
-
-@dataclass(frozen=True)
-class Dielectric:
-    """Glass (``reflect``) or Refraction BSDF: a smooth (``alpha`` 0) or GGX-rough interface of index ``ior``.
-
-    ``color`` tints what is transmitted and, for glass, what is reflected, as in Cycles.
-    """
-
-    color: Value = (1.0, 1.0, 1.0)
-    ior: float = 1.5
-    alpha: float = 0.0  #: GGX roughness α = Blender roughness²
-    reflect: bool = True
-
-
-@dataclass(frozen=True)
-class Translucent:
-    """Lambertian transmission to the other side (Blender's Translucent BSDF)."""
-
-    color: Value = (0.8, 0.8, 0.8)
-
-
-@dataclass(frozen=True)
-class Transparent:
-    """Light passes straight through, attenuated by the grey level of ``color`` (Blender's Transparent BSDF)."""
-
-    color: RGB = (1.0, 1.0, 1.0)
-
-
-@dataclass(frozen=True, eq=False)
-class Mix:
-    """``(1 − factor) · first + factor · second`` (Mix Shader); ``factor`` may be a texture."""
-
-    factor: Value
-    first: "Material"
-    second: "Material"
-
-
-@dataclass(frozen=True, eq=False)
-class Add:
-    """``first + second`` (Add Shader); the builder keeps the sum energy-conserving (docs/rendering.md)."""
-
-    first: "Material"
-    second: "Material"
-
-
-@dataclass(frozen=True, eq=False)
-class Mask:
-    """Alpha: ``opacity`` of the surface is ``bsdf``, the rest lets light through unchanged."""
-
-    opacity: Value
-    bsdf: "Material"
-
-
-@dataclass(frozen=True, eq=False)
-class NormalMap:
-    """``bsdf`` shaded with the tangent-space normals of ``texture`` (non-colour RGB, 0.5 = no tilt)."""
-
-    texture: Texture
-    bsdf: "Material"
-
-
-@dataclass(frozen=True, eq=False)
-class Bump:
-    """``bsdf`` shaded as if the surface were displaced by ``height`` × ``scale`` along its normal."""
-
-    height: Texture
-    scale: float
-    bsdf: "Material"
 
 
 Material = Union[Diffuse, Principled, Glossy, Emission, ScratchedMetal, Dielectric, Translucent, Transparent, Mix,

@@ -115,3 +115,36 @@ def test_export_folder_writes_the_mesh_once_and_instances_load_back(variant, tmp
     in_memory = np.asarray(mi.render(builder.load_scene(description, S.RenderSettings()), spp=16, seed=3))
     assert in_memory[..., :3].mean() > 0.01
     np.testing.assert_allclose(from_files, in_memory, rtol=1e-3, atol=1e-4)
+
+
+def test_scratched_instances_glint_as_scratched_copies_do(variant):
+    from bridge_scenes import quad
+    from mitsuba_bridge import scratch
+
+    scratches = scratch.random_scratches(800, seed=4, width=scratch.Gaussian(4e-6, 1.3e-6), length=(0.2, 0.6),
+                                         depth=scratch.Gaussian(250e-9, 80e-9))
+    plate = quad(0.1, "plate")
+    shapes = []
+    for index, (x, turn) in enumerate([(-0.06, 0.0), (0.06, 0.6)]):
+        matrix = np.eye(4)
+        matrix[:2, :2] = [[math.cos(turn), -math.sin(turn)], [math.sin(turn), math.cos(turn)]]
+        matrix[:3, 3] = (x, 0, 0)
+        shapes.append(S.Shape(f"plate{index}", plate, matrix, "metal"))
+    camera = np.eye(4)
+    elevation = math.radians(47)
+    camera[:3, 3] = (0, -0.3 * math.cos(elevation), 0.3 * math.sin(elevation))
+    forward = -camera[:3, 3] / np.linalg.norm(camera[:3, 3])
+    right = np.cross(forward, (0, 0, 1.0))
+    right /= np.linalg.norm(right)
+    camera[:3, :3] = np.stack([right, np.cross(right, forward), -forward], axis=1)
+    description = simple_scene(film=S.Film(48, 24), camera=S.Camera(camera, fov_x_deg=50), shapes=shapes,
+                               materials={"metal": S.ScratchedMetal(scratches, coherence_diameter_m=30e-6)},
+                               world=S.SkyWorld((0, math.cos(math.radians(35)), math.sin(math.radians(35)))))
+    settings = S.RenderSettings(spp=64)
+    copies = [np.asarray(mi.render(builder.load_scene(description, settings, instancing=False), spp=64, seed=seed))
+              for seed in (1, 2)]
+    instanced = np.asarray(mi.render(builder.load_scene(description, settings), spp=64, seed=3))
+    assert "instance" in repr(builder.load_scene(description, settings).shapes()[0]).lower()
+    sigma = noise_of_mean(copies[0][..., :3], copies[1][..., :3])
+    assert copies[0][..., :3].mean() > 0.01
+    assert instanced[..., :3].mean() == pytest.approx(copies[0][..., :3].mean(), abs=4 * math.sqrt(2) * sigma)
