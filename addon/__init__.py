@@ -24,6 +24,7 @@ _MODULES = (
     "render.engine",
     "render.panels",
     "render.export",
+    "render.nodes",
 )
 
 

@@ -216,3 +216,21 @@ def test_scratch_group_without_scratches_renders_its_stand_in_with_a_warning(sta
     link(mat, add_scratch_node(mat).outputs[0], shader_of(mat).inputs[2])
     result, warnings = gathered(staged, mat)
     assert isinstance(result, S.Glossy) and any("carries no scratches" in w for w in warnings)
+
+
+def test_add_scratch_bsdf_operator_mixes_it_in_and_a_mask_limits_the_scratches(staged):
+    mat = material("Painted", "ShaderNodeBsdfPrincipled")
+    plane = add_plane(staged, mat=mat)
+    storage.write_scratches(plane, scratch.random_scratches(10, seed=2))
+    bpy.context.view_layer.objects.active = plane
+    assert bpy.ops.scratch.add_scratch_bsdf() == {"FINISHED"}
+    mix = shader_of(mat)
+    assert mix.bl_idname == "ShaderNodeMixShader" and mix.inputs["Fac"].default_value == 1.0
+    assert mix.inputs[1].links[0].from_node.bl_idname == "ShaderNodeBsdfPrincipled"
+    assert mix.inputs[2].links[0].from_node.node_tree.name.startswith("Scratch BSDF")
+    # Factor 1: the scratch BSDF everywhere, exactly as an object without the group.
+    assert isinstance(gather_scene(bpy.context.evaluated_depsgraph_get()).materials["scratches:Plane"],
+                      S.ScratchedMetal)
+    link(mat, image_node(mat, image("mask", np.ones((2, 2, 4)))).outputs["Color"], mix.inputs["Fac"])
+    result = gather_scene(bpy.context.evaluated_depsgraph_get()).materials["scratches:Plane"]
+    assert isinstance(result, S.Mix) and isinstance(result.second, S.ScratchedMetal)
