@@ -130,10 +130,13 @@ def _principled(material: Principled, resources) -> dict:
 # ---- the Add Shader ------------------------------------------------------------------------------
 
 def _albedo_bound(material) -> np.ndarray:
-    """An upper bound per RGB channel of the fraction of light ``material`` scatters (textures count as 1)."""
+    """An upper bound per RGB channel of the fraction of light ``material`` scatters (a texture: its brightest pixel)."""
     def bound(value):
-        return np.broadcast_to(np.asarray(value, dtype=float), (3,)) if isinstance(value, (int, float, tuple)) \
-            else np.ones(3)
+        if isinstance(value, Texture):
+            return np.minimum(_linear_pixels(value).reshape(-1, 3).max(axis=0), 1.0)
+        if isinstance(value, Checker):
+            return np.maximum(np.asarray(value.color1, dtype=float), np.asarray(value.color2, dtype=float))
+        return np.broadcast_to(np.asarray(value, dtype=float), (3,))
 
     if isinstance(material, Diffuse):
         return bound(material.reflectance)
@@ -188,7 +191,8 @@ def _add_as_blend(material: Add) -> tuple[float, float, float]:
 
 
 def scaled(material, factor: float):
-    """``material`` with its colours multiplied by ``factor`` (textures and scratches are left as they are)."""
+    """``material`` with its colours multiplied by ``factor`` (textures are scaled pixel by pixel; the
+    scratch BSDF is left as it is)."""
     if abs(factor - 1.0) < 1e-9:
         return material
 
@@ -197,7 +201,12 @@ def scaled(material, factor: float):
             return value * factor
         if isinstance(value, tuple):
             return tuple(c * factor for c in value)
-        return value  # a texture cannot be scaled by a Mitsuba parameter
+        if isinstance(value, Texture):
+            return _scaled_texture(value, factor)
+        if isinstance(value, Checker):
+            return Checker(tuple(c * factor for c in value.color1), tuple(c * factor for c in value.color2),
+                           value.scale)
+        return value
 
     if isinstance(material, Diffuse):
         return replace(material, reflectance=times(material.reflectance))
@@ -218,3 +227,23 @@ def scaled(material, factor: float):
     if isinstance(material, Bump):
         return Bump(material.height, material.scale, scaled(material.bsdf, factor))
     return material
+
+
+def _linear_pixels(texture: Texture) -> np.ndarray:
+    """The linear RGB pixels of ``texture`` (files are read with Mitsuba's own image loader)."""
+    from .resources import srgb_to_linear
+
+    if texture.pixels is not None:
+        pixels = srgb_to_linear(texture.pixels) if texture.srgb else texture.pixels
+    else:
+        import mitsuba as mi
+
+        pixels = np.array(mi.Bitmap(str(texture.path)).convert(mi.Bitmap.PixelFormat.RGB, mi.Struct.Type.Float32,
+                                                               srgb_gamma=False))
+    return np.asarray(pixels[..., :3], dtype=np.float32)
+
+
+def _scaled_texture(texture: Texture, factor: float) -> Texture:
+    """``texture`` × ``factor`` as linear pixels (Mitsuba's textures have no scale of their own)."""
+    return Texture(name=f"{texture.name}*{factor:.6g}", pixels=_linear_pixels(texture) * np.float32(factor),
+                   srgb=False, interpolation=texture.interpolation)

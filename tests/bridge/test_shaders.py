@@ -134,6 +134,21 @@ def test_add_is_the_sum_while_it_conserves_energy_and_normalised_beyond(variant)
     assert render(uneven, spp=64).mean() == pytest.approx(0.9 / 1.2 + 0.3 / 1.2, rel=0.02)
 
 
+@pytest.mark.parametrize("srgb", [False, True])
+def test_add_rescales_textured_colours_too(variant, tmp_path, srgb):
+    grey = S.Texture("grey", pixels=np.full((2, 2, 3), 0.5 if not srgb else 0.7353569, np.float32), srgb=srgb)
+    # 0.7353569 is sRGB-encoded 0.5: the sum must be taken in linear values, as Cycles does
+    assert render(S.Add(S.Diffuse(grey), S.Diffuse((0.3, 0.3, 0.3))), spp=16).mean() == pytest.approx(0.8, rel=0.02)
+
+
+def test_add_rescales_a_texture_file(variant, tmp_path):
+    from mitsuba_bridge.exr import write_exr
+
+    write_exr(tmp_path / "grey.exr", np.full((2, 2, 3), 0.4, np.float32))
+    grey = S.Texture("grey-file", path=str(tmp_path / "grey.exr"), srgb=False)
+    assert render(S.Add(S.Diffuse(grey), S.Diffuse((0.4, 0.4, 0.4))), spp=16).mean() == pytest.approx(0.8, rel=0.02)
+
+
 def test_emission_inside_a_mix_or_add_is_an_emitter_with_the_bsdf_beside_it(variant):
     glow = S.Emission((2.0, 2.0, 2.0), S.Diffuse((0.5, 0.5, 0.5)))
     assert render(glow, world=S.ConstantWorld((1, 1, 1)), spp=16).mean() == pytest.approx(2.5, rel=0.01)
