@@ -177,8 +177,9 @@ class ValueReader:
 
     def _checker(self, node, output):
         vector = linked_output(node.inputs["Vector"])
-        if vector is None or vector[0].bl_idname not in ("ShaderNodeUVMap", "ShaderNodeTexCoord") or \
-                vector[1].identifier != "UV" and vector[0].bl_idname == "ShaderNodeTexCoord":
+        from_uv = vector is not None and (vector[0].bl_idname == "ShaderNodeUVMap" or (
+            vector[0].bl_idname == "ShaderNodeTexCoord" and vector[1].identifier == "UV"))
+        if not from_uv:
             self.warnings.warn(f"{self.owner}: Checker Texture '{node.name}' is laid out in UV coordinates here "
                                "(connect a UV output to its Vector for the same look in Cycles)")
         colours = []
