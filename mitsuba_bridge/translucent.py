@@ -39,7 +39,7 @@ def plugin_class():
     class Translucent(mi.BSDF):
         def __init__(self, props):
             super().__init__(props)
-            if props.has_property("transmittance"):
+            if "transmittance" in props:
                 self.m_transmittance = props.get_texture("transmittance")  # numbers, colours and textures
             else:
                 self.m_transmittance = mi.load_dict({"type": "uniform", "value": 0.5})

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ....mitsuba_bridge.scene import (Emission, MeshData, RenderSettings, SceneDescription, ScratchedMetal,
+from ....mitsuba_bridge.scene import (Checker, Emission, MeshData, RenderSettings, SceneDescription, ScratchedMetal,
                                       Shape, Texture, walk_materials)
 from ....mitsuba_bridge.scratch import ScratchFormatError, ScratchSet
 from ...storage import has_scratches, read_scratches
@@ -123,7 +123,7 @@ def _join(meshes, name) -> MeshData:
 
 
 def _uses_texture(material) -> bool:
-    return any(isinstance(getattr(part, name, None), Texture) for part in walk_materials(material)
+    return any(isinstance(getattr(part, name, None), (Texture, Checker)) for part in walk_materials(material)
                for name in ("reflectance", "base_color", "metallic", "roughness", "color", "factor", "opacity",
                             "texture", "height"))
 
