@@ -234,3 +234,13 @@ def test_add_scratch_bsdf_operator_mixes_it_in_and_a_mask_limits_the_scratches(s
     link(mat, image_node(mat, image("mask", np.ones((2, 2, 4)))).outputs["Color"], mix.inputs["Fac"])
     result = gather_scene(bpy.context.evaluated_depsgraph_get()).materials["scratches:Plane"]
     assert isinstance(result, S.Mix) and isinstance(result.second, S.ScratchedMetal)
+
+
+def test_emission_under_a_textured_mix_factor_is_halved_with_a_warning(staged):
+    mat = material("Patchy", "ShaderNodeMixShader")
+    link(mat, image_node(mat, image("patches", np.ones((2, 2, 4)))).outputs["Color"], shader_of(mat).inputs["Fac"])
+    link(mat, node(mat, "ShaderNodeEmission", Strength=2.0).outputs[0], shader_of(mat).inputs[1])
+    link(mat, node(mat, "ShaderNodeBsdfDiffuse").outputs[0], shader_of(mat).inputs[2])
+    result, warnings = gathered(staged, mat)
+    assert result.radiance == pytest.approx((1.0, 1.0, 1.0)) and isinstance(result.bsdf.factor, S.Texture)
+    assert any("textured factor" in w for w in warnings)

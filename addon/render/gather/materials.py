@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from ....mitsuba_bridge.scene import (Add, Bump, Checker, Dielectric, Diffuse, Emission, Glossy, Mask, Mix, NormalMap,
-                                      Principled, Texture, Translucent, Transparent)
+                                      Principled, Texture, Translucent, Transparent, walk_materials)
 from .report import Warnings
 from .values import ValueReader, linked_output
 
@@ -233,7 +233,7 @@ def _lift_emission(material):
         second_radiance, second = _lift_emission(material.second)
         if first_radiance is None and second_radiance is None:
             return None, material
-        factor = material.factor if isinstance(material.factor, float) else 0.5
+        factor = material.factor if isinstance(material.factor, float) else 0.5  # see gather_material's warning
         radiance = (1 - factor) * _zero(first_radiance) + factor * _zero(second_radiance)
         if first is None and second is None:
             return radiance, None
@@ -247,6 +247,12 @@ def _lift_emission(material):
         parts = [part for part in (first, second) if part is not None]
         return radiance, (None if not parts else parts[0] if len(parts) == 1 else Add(*parts))
     return None, material
+
+
+def _has_textured_mix(material) -> bool:
+    return any(isinstance(part, Mix) and not isinstance(part.factor, float) and
+               (_lift_emission(part.first)[0] is not None or _lift_emission(part.second)[0] is not None)
+               for part in walk_materials(material))
 
 
 def _zero(radiance):
@@ -281,6 +287,9 @@ def gather_material(material, warnings: Warnings, *, scratch=None):
     if scratch is not None and not shaders.used_scratch_group:
         return scratch  # no Scratch BSDF group: the scratch BSDF covers the whole object, as documented
     radiance, bsdf = _lift_emission(surface)
+    if radiance is not None and _has_textured_mix(surface):
+        warnings.warn(f"{owner}: emission inside a Mix Shader with a textured factor is weighted by one half "
+                      "(an emitter's radiance is one colour here)")
     if radiance is not None and np.any(radiance > 0):
         return Emission(radiance=tuple(float(c) for c in radiance), bsdf=bsdf)
     return bsdf if bsdf is not None else BLACK
