@@ -28,6 +28,7 @@ _MODULES = (
     "render.engine",
     "render.panels",
     "render.export",
+    "render.nodes",
 )
 
 

@@ -33,6 +33,8 @@ def register_plugins() -> None:
     Call after ``mi.set_variant(...)``; calling again (or after switching
     variants) is harmless.
     """
+    from . import translucent
     from .bsdf import register  # Mitsuba is imported here, not at package import
 
     register()
+    translucent.register()

@@ -33,10 +33,12 @@ from typing import Optional, Union
 import numpy as np
 
 from .scratch import ScratchSet
+from .shading import Add, Bump, Checker, Dielectric, Mask, Mix, NormalMap, Translucent, Transparent
 
 __all__ = [
-    "RGB", "Film", "Camera", "Texture", "Diffuse", "Principled", "Glossy", "Emission", "ScratchedMetal",
-    "Material", "MeshData", "Shape", "PointLight", "SpotLight", "SunLight", "AreaLight", "Light",
+    "RGB", "Film", "Camera", "Texture", "Checker", "Diffuse", "Principled", "Glossy", "Emission", "ScratchedMetal",
+    "Dielectric", "Translucent", "Transparent", "Mix", "Add", "Mask", "NormalMap", "Bump", "Material",
+    "walk_materials", "MeshData", "Shape", "PointLight", "SpotLight", "SunLight", "AreaLight", "Light",
     "ConstantWorld", "EnvironmentWorld", "SkyWorld", "World", "RenderSettings", "SceneDescription",
     "FILTERS", "orthonormal",
 ]
@@ -158,7 +160,7 @@ class Texture:
             raise ValueError(f"texture {self.name!r}: give exactly one of path and pixels")
 
 
-Value = Union[float, RGB, Texture]
+Value = Union[float, RGB, Texture, Checker]
 
 
 @dataclass(frozen=True)
@@ -196,7 +198,7 @@ class Emission:
     """A surface that emits ``radiance`` (W/(m²·sr)) and, with ``bsdf``, also reflects."""
 
     radiance: RGB = (1.0, 1.0, 1.0)
-    bsdf: Optional[Union[Diffuse, Principled, Glossy]] = None
+    bsdf: Optional["Material"] = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -216,7 +218,20 @@ class ScratchedMetal:
     diffuse_reflectance: Optional[RGB] = None
 
 
-Material = Union[Diffuse, Principled, Glossy, Emission, ScratchedMetal]
+Material = Union[Diffuse, Principled, Glossy, Emission, ScratchedMetal, Dielectric, Translucent, Transparent, Mix,
+                 Add, Mask, NormalMap, Bump]
+#: Materials holding other materials, and the fields that hold them.
+_NESTED = {Mix: ("first", "second"), Add: ("first", "second"), Mask: ("bsdf",), NormalMap: ("bsdf",),
+           Bump: ("bsdf",), Emission: ("bsdf",)}
+
+
+def walk_materials(material):
+    """``material`` and every material nested in it (depth first)."""
+    yield material
+    for name in _NESTED.get(type(material), ()):
+        inner = getattr(material, name)
+        if inner is not None:
+            yield from walk_materials(inner)
 
 
 # ---- geometry --------------------------------------------------------------------------------

@@ -7,14 +7,21 @@ A Mitsuba variant must be active before calling anything here.
 """
 from __future__ import annotations
 
-from ..scene import RenderSettings, SceneDescription
+from collections import Counter
+
+from ..scene import Mask, RenderSettings, SceneDescription, Transparent, walk_materials
 from .camera import film_dict, integrator_dict, sensor_dict
 from .lights import light_dict, world_dict
-from .materials import bsdf_dict, emitter_dict
+from .materials import add_weights, bsdf_dict, emitter_dict
 from .resources import InMemory, ToFolder, safe_name
+from .transform import to_mitsuba
 
 __all__ = ["scene_dict", "load_scene", "InMemory", "ToFolder", "sensor_dict", "film_dict", "integrator_dict",
-           "bsdf_dict", "emitter_dict", "light_dict", "world_dict", "material_id"]
+           "bsdf_dict", "emitter_dict", "add_weights", "light_dict", "world_dict", "material_id",
+           "MIN_INSTANCES"]
+
+#: Shapes showing one mesh with one material at least this often share it through a ``shapegroup``.
+MIN_INSTANCES = 2
 
 
 def material_id(key: str) -> str:
@@ -22,18 +29,26 @@ def material_id(key: str) -> str:
     return "mat-" + safe_name(key)
 
 
-def scene_dict(description: SceneDescription, settings: RenderSettings, resources=None) -> dict:
+def scene_dict(description: SceneDescription, settings: RenderSettings, resources=None, *,
+               instancing: bool = True) -> dict:
     """The ``mi.load_dict`` dict of ``description``.
 
     With :class:`ToFolder` resources materials are top-level entries that shapes
     reference (written once in the XML); in memory the resources share one
     loaded BSDF per material instead.
+
+    Shapes that share one :class:`MeshData` and one material (instances, linked
+    duplicates) become one ``shapegroup`` holding the mesh in object space and
+    one ``instance`` per shape, so memory grows with the unique meshes, not the
+    instances. Emissive ones stay separate meshes (Mitsuba's shape groups carry
+    no emitters); ``instancing=False`` turns sharing off (comparisons, benchmarks).
     """
     resources = InMemory() if resources is None else resources
     shared = isinstance(resources, ToFolder)
     result: dict = {
         "type": "scene",
-        "integrator": integrator_dict(settings, description.film),
+        "integrator": integrator_dict(settings, description.film,
+                                      see_through_surfaces=_has_see_through_surfaces(description)),
         "sensor": sensor_dict(description.camera, description.film, settings),
     }
     bsdfs = {key: bsdf_dict(material, resources, key=key) for key, material in description.materials.items()
@@ -42,11 +57,23 @@ def scene_dict(description: SceneDescription, settings: RenderSettings, resource
         for key, bsdf in bsdfs.items():
             result[material_id(key)] = bsdf
     names = set(result)
+    uses = Counter((id(shape.mesh), shape.material) for shape in description.shapes)
+    groups: dict = {}
     for shape in description.shapes:
         material = description.materials[shape.material]
         bsdf = {"type": "ref", "id": material_id(shape.material)} if shared else bsdfs[shape.material]
+        emitter = emitter_dict(material)
+        key = (id(shape.mesh), shape.material)
         name = _unique(names, "shape-" + safe_name(shape.name))
-        result[name] = resources.shape(shape, bsdf, emitter_dict(material), material_key=shape.material)
+        if not instancing or emitter is not None or uses[key] < MIN_INSTANCES:
+            result[name] = resources.shape(shape, bsdf, emitter, material_key=shape.material)
+            continue
+        if key not in groups:
+            groups[key] = _unique(names, "group-" + safe_name(shape.mesh.name))
+            result[groups[key]] = {"type": "shapegroup",
+                                   "mesh": resources.instanced_shape(shape.mesh, bsdf, material_key=shape.material)}
+        result[name] = {"type": "instance", "shapegroup": {"type": "ref", "id": groups[key]},
+                        "to_world": to_mitsuba(shape.to_world)}
     for index, light in enumerate(description.lights):
         result[_unique(names, f"light-{index}")] = light_dict(light)
     if description.world is not None:
@@ -54,11 +81,16 @@ def scene_dict(description: SceneDescription, settings: RenderSettings, resource
     return result
 
 
-def load_scene(description: SceneDescription, settings: RenderSettings):
+def _has_see_through_surfaces(description: SceneDescription) -> bool:
+    return any(isinstance(part, (Mask, Transparent)) for material in description.materials.values()
+               for part in walk_materials(material))
+
+
+def load_scene(description: SceneDescription, settings: RenderSettings, *, instancing: bool = True):
     """The scene loaded in memory (no files written)."""
     import mitsuba as mi
 
-    return mi.load_dict(scene_dict(description, settings, InMemory()))
+    return mi.load_dict(scene_dict(description, settings, InMemory(), instancing=instancing))
 
 
 def _unique(names: set, name: str) -> str:

@@ -64,6 +64,11 @@ def sensor_dict(camera: Camera, film: Film, settings: RenderSettings) -> dict:
     return sensor
 
 
-def integrator_dict(settings: RenderSettings, film: Film) -> dict:
-    """A path tracer; a transparent film hides directly seen emitters, as Blender's does."""
-    return {"type": "path", "max_depth": int(settings.max_depth), "hide_emitters": bool(film.transparent)}
+def integrator_dict(settings: RenderSettings, film: Film, *, see_through_surfaces: bool = False) -> dict:
+    """A path tracer; a transparent film hides directly seen emitters, as Blender's does.
+
+    With ``see_through_surfaces`` (alpha, Transparent BSDF) it is ``volpath``, whose shadow
+    rays pass through ``mask`` surfaces as Cycles' do; ``path`` would make them cast full shadows.
+    """
+    return {"type": "volpath" if see_through_surfaces else "path", "max_depth": int(settings.max_depth),
+            "hide_emitters": bool(film.transparent)}

@@ -116,6 +116,14 @@ class InMemory:
 
     def shape(self, shape: Shape, bsdf: dict, emitter: dict | None, *, material_key: str):
         """An ``mi.Mesh`` in world space, filled from numpy, with its BSDF (shared per material)."""
+        positions, faces, normals = world_geometry(shape)
+        return self._mesh(shape.name, positions, faces, normals, shape.mesh.uvs, bsdf, emitter, material_key)
+
+    def instanced_shape(self, mesh: MeshData, bsdf: dict, *, material_key: str):
+        """An ``mi.Mesh`` in object space for a ``shapegroup`` (its instances place it)."""
+        return self._mesh(mesh.name, mesh.positions, mesh.faces, mesh.normals, mesh.uvs, bsdf, None, material_key)
+
+    def _mesh(self, name, positions, faces, normals, uvs, bsdf, emitter, material_key):
         import mitsuba as mi
 
         if material_key not in self._bsdfs:
@@ -124,17 +132,15 @@ class InMemory:
         props["bsdf"] = self._bsdfs[material_key]
         if emitter is not None:
             props["emitter"] = mi.load_dict(emitter)
-        positions, faces, normals = world_geometry(shape)
-        mesh = shape.mesh
-        result = mi.Mesh(shape.name, len(positions), len(faces), props=props,
-                         has_vertex_normals=normals is not None, has_vertex_texcoords=mesh.uvs is not None)
+        result = mi.Mesh(name, len(positions), len(faces), props=props,
+                         has_vertex_normals=normals is not None, has_vertex_texcoords=uvs is not None)
         params = mi.traverse(result)
-        params["vertex_positions"] = mi.Float(positions.ravel())
-        params["faces"] = mi.UInt32(faces.ravel())
+        params["vertex_positions"] = mi.Float(np.ascontiguousarray(positions, dtype=np.float32).ravel())
+        params["faces"] = mi.UInt32(np.ascontiguousarray(faces, dtype=np.uint32).ravel())
         if normals is not None:
-            params["vertex_normals"] = mi.Float(normals.ravel())
-        if mesh.uvs is not None:
-            params["vertex_texcoords"] = mi.Float(np.ascontiguousarray(mesh.uvs, dtype=np.float32).ravel())
+            params["vertex_normals"] = mi.Float(np.ascontiguousarray(normals, dtype=np.float32).ravel())
+        if uvs is not None:
+            params["vertex_texcoords"] = mi.Float(np.ascontiguousarray(uvs, dtype=np.float32).ravel())
         params.update()
         return result
 
@@ -189,18 +195,24 @@ class ToFolder:
 
     def shape(self, shape: Shape, bsdf: dict, emitter: dict | None, *, material_key: str) -> dict:
         """A ``ply`` shape: the mesh file is written once and shared by its instances."""
-        from ..ply import write_ply
-
-        mesh: MeshData = shape.mesh
-        if id(mesh) not in self._meshes:
-            relative = self._unique("meshes", mesh.name, ".ply")
-            write_ply(self.folder / relative, mesh.positions, mesh.faces, mesh.normals, mesh.uvs)
-            self._meshes[id(mesh)] = relative
-        result = {"type": "ply", "filename": self._meshes[id(mesh)], "to_world": to_mitsuba(shape.to_world),
+        result = {"type": "ply", "filename": self._ply(shape.mesh), "to_world": to_mitsuba(shape.to_world),
                   "bsdf": bsdf}
         if emitter is not None:
             result["emitter"] = emitter
         return result
+
+    def instanced_shape(self, mesh: MeshData, bsdf: dict, *, material_key: str) -> dict:
+        """A ``ply`` shape in object space for a ``shapegroup``."""
+        return {"type": "ply", "filename": self._ply(mesh), "bsdf": bsdf}
+
+    def _ply(self, mesh: MeshData) -> str:
+        from ..ply import write_ply
+
+        if id(mesh) not in self._meshes:
+            relative = self._unique("meshes", mesh.name, ".ply")
+            write_ply(self.folder / relative, mesh.positions, mesh.faces, mesh.normals, mesh.uvs)
+            self._meshes[id(mesh)] = relative
+        return self._meshes[id(mesh)]
 
 
 def _scratch_settings(material: ScratchedMetal) -> dict:

@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ....mitsuba_bridge.scene import (Emission, MeshData, RenderSettings, SceneDescription, ScratchedMetal,
-                                      Shape, Texture)
+from ....mitsuba_bridge.scene import (Checker, Emission, MeshData, RenderSettings, SceneDescription, ScratchedMetal,
+                                      Shape, Texture, walk_materials)
 from ....mitsuba_bridge.finite import with_finite_meshes
 from ....mitsuba_bridge.scratch import ScratchFormatError, ScratchSet
 from ...storage import has_scratches, read_scratches
@@ -83,12 +83,13 @@ def _gather_object(obj, matrix, scene, materials: dict, meshes: dict, warnings: 
     parts = meshes[key]
     shapes = []
     for slot, mesh in parts:
+        material = obj.material_slots[slot].material if slot < len(obj.material_slots) else None
         if scratched:
             material_key = f"scratches:{original.name}"
             if material_key not in materials:
-                materials[material_key] = _scratched_metal(original, scene, mesh.uvs is not None, warnings)
+                metal = _scratched_metal(original, scene, mesh.uvs is not None, warnings)
+                materials[material_key] = gather_material(material, warnings, scratch=metal)
         else:
-            material = obj.material_slots[slot].material if slot < len(obj.material_slots) else None
             material_key = "default" if material is None else f"material:{material.name}"
             if material_key not in materials:
                 materials[material_key] = gather_material(material, warnings)
@@ -125,9 +126,9 @@ def _join(meshes, name) -> MeshData:
 
 
 def _uses_texture(material) -> bool:
-    inner = getattr(material, "bsdf", None) or material
-    return any(isinstance(getattr(inner, name, None), Texture)
-               for name in ("reflectance", "base_color", "metallic", "roughness", "color"))
+    return any(isinstance(getattr(part, name, None), (Texture, Checker)) for part in walk_materials(material)
+               for name in ("reflectance", "base_color", "metallic", "roughness", "color", "factor", "opacity",
+                            "texture", "height"))
 
 
 def _scratched_metal(obj, scene, has_uvs: bool, warnings: Warnings) -> ScratchedMetal:

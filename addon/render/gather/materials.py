@@ -1,143 +1,295 @@
 """Blender materials (shader node trees) → neutral materials.
 
-Principled BSDF, Diffuse BSDF, Glossy BSDF and Emission map to their Mitsuba
-counterparts, with Image Texture nodes on their colour and scalar inputs.
-Anything else renders as diffuse grey with one warning per material; an input
-driven by an unsupported node keeps its own value, with a warning.
+Shaders: Principled, Diffuse, Glossy, Glass, Refraction, Translucent,
+Transparent and Emission BSDFs, combined by Mix and Add Shader nodes; Normal Map
+and Bump nodes on a shader's Normal input; the Principled BSDF's alpha. Inputs
+are read by :class:`~.values.ValueReader` (textures, constant folding, baking).
+An unsupported shader renders as diffuse grey with one warning per material;
+an input driven by an unsupported node keeps its own value, with a warning.
+
+On a scratched object a node group named "Scratch BSDF" stands for the
+``scratch_diffraction`` BSDF (docs/rendering.md, "Scratches in a material").
 """
 from __future__ import annotations
 
-from ....mitsuba_bridge.scene import Diffuse, Emission, Glossy, Principled, Texture
-from .report import Warnings
-from .textures import gather_image
+import numpy as np
 
-__all__ = ["gather_material", "DEFAULT_MATERIAL", "FALLBACK_MATERIAL", "SUPPORTED_SHADERS"]
+from ....mitsuba_bridge.scene import (Add, Bump, Checker, Dielectric, Diffuse, Emission, Glossy, Mask, Mix, NormalMap,
+                                      Principled, Texture, Translucent, Transparent, walk_materials)
+from .report import Warnings
+from .values import ValueReader, linked_output
+
+__all__ = ["gather_material", "linked_node", "DEFAULT_MATERIAL", "FALLBACK_MATERIAL", "SUPPORTED_SHADERS",
+           "SCRATCH_GROUP"]
 
 #: What objects without a material render as (Blender's default surface).
 DEFAULT_MATERIAL = Diffuse((0.8, 0.8, 0.8))
 #: What unsupported shaders render as.
 FALLBACK_MATERIAL = Diffuse((0.5, 0.5, 0.5))
+#: An unconnected shader socket: Cycles' empty closure, black.
+BLACK = Diffuse((0.0, 0.0, 0.0))
+#: Node groups whose name starts with this stand for the scratch BSDF on scratched objects.
+SCRATCH_GROUP = "Scratch BSDF"
 SUPPORTED_SHADERS = {
     "ShaderNodeBsdfPrincipled": "Principled BSDF",
     "ShaderNodeBsdfDiffuse": "Diffuse BSDF",
     "ShaderNodeBsdfAnisotropic": "Glossy BSDF",
+    "ShaderNodeBsdfGlass": "Glass BSDF",
+    "ShaderNodeBsdfRefraction": "Refraction BSDF",
+    "ShaderNodeBsdfTranslucent": "Translucent BSDF",
+    "ShaderNodeBsdfTransparent": "Transparent BSDF",
     "ShaderNodeEmission": "Emission",
+    "ShaderNodeMixShader": "Mix Shader",
+    "ShaderNodeAddShader": "Add Shader",
 }
 
 
 def linked_node(socket):
     """The node feeding ``socket`` (through reroutes), or None if unlinked or muted."""
-    for _ in range(64):  # reroute chains are short; a cycle must not hang the render
-        links = [link for link in socket.links if link.is_valid and not link.is_muted]
-        if not links:
-            return None
-        node = links[0].from_node
-        if node.bl_idname != "NodeReroute":
-            return None if node.mute else node
-        socket = node.inputs[0]
-    return None
+    source = linked_output(socket)
+    return None if source is None else source[0]
 
 
-def _default(socket, colour: bool):
-    value = socket.default_value
-    return tuple(float(c) for c in value[:3]) if colour else float(value)
+class _Shaders:
+    """Gathers one material's shader tree."""
+
+    def __init__(self, warnings: Warnings, owner: str, scratch, material_name: str):
+        self.warnings, self.owner, self.scratch = warnings, owner, scratch
+        self.values = ValueReader(warnings, owner)
+        self.material_name = material_name
+        self.used_scratch_group = False
+
+    def value(self, node, name, colour=False):
+        return self.values.read(node, name, colour=colour)
+
+    def scalar(self, node, name: str, what: str) -> float:
+        """A number input; a texture there is not supported by the plugin (its own value is used)."""
+        value = self.value(node, name)
+        if not isinstance(value, float):
+            self.warnings.warn(f"{self.owner}: a textured {what} ('{name}' of '{node.name}') is not supported: "
+                               "its own value is used")
+            value = float(node.inputs[name].default_value)
+        return value
+
+    def warn_if_linked(self, node, names, what: str) -> None:
+        for name in names:
+            if name in node.inputs and linked_node(node.inputs[name]) is not None:
+                self.warnings.warn(f"{self.owner}: {what} ('{name}' of '{node.name}') is not supported and is ignored")
+
+    # ---- the tree -----------------------------------------------------------------------------------
+
+    def shader(self, socket):
+        """The material reaching a shader socket (an unconnected one is black, as in Cycles)."""
+        node = linked_node(socket)
+        if node is None:
+            return BLACK
+        kind = node.bl_idname
+        if kind == "ShaderNodeMixShader":
+            factor = self.value(node, "Fac")
+            first, second = self.shader(node.inputs[1]), self.shader(node.inputs[2])
+            if isinstance(factor, float):
+                factor = min(max(factor, 0.0), 1.0)  # Cycles clamps the factor
+                if factor == 0.0:
+                    return first
+                if factor == 1.0:
+                    return second
+            return Mix(factor, first, second)
+        if kind == "ShaderNodeAddShader":
+            return Add(self.shader(node.inputs[0]), self.shader(node.inputs[1]))
+        if kind == "ShaderNodeEmission":
+            colour = self.value(node, "Color", True)
+            if not isinstance(colour, tuple):
+                self.warnings.warn(f"{self.owner}: textured emission is not supported: rendered white")
+                colour = (1.0, 1.0, 1.0)
+            strength = self.scalar(node, "Strength", "emission strength")
+            return Emission(radiance=tuple(c * strength for c in colour))
+        if kind == "ShaderNodeGroup" and node.node_tree is not None and node.node_tree.name.startswith(SCRATCH_GROUP):
+            if self.scratch is not None:
+                self.used_scratch_group = True
+                return self.scratch
+            self.warnings.warn(f"{self.owner}: '{node.name}' stands for the scratch BSDF but the object carries no "
+                               "scratches: rendered as a plain mirror-like metal", key=("scratch-group", self.owner))
+            return Glossy((0.9, 0.9, 0.9), alpha=0.0)
+        bsdf = self.bsdf(node)
+        if bsdf is None:
+            self.warnings.warn(f"{self.owner}: shader '{node.name}' ({node.bl_label}) is not supported: rendered as "
+                               f"diffuse grey (supported: {', '.join(SUPPORTED_SHADERS.values())})",
+                               key=("material", self.material_name, node.name))
+            return FALLBACK_MATERIAL
+        return bsdf
+
+    def bsdf(self, node):
+        kind = node.bl_idname
+        if kind == "ShaderNodeBsdfPrincipled":
+            return self.principled(node)
+        if kind == "ShaderNodeBsdfDiffuse":
+            return self.with_normal(node, Diffuse(self.value(node, "Color", True)))
+        if kind == "ShaderNodeBsdfAnisotropic":
+            self.warn_if_linked(node, ("Tangent",), "tangent mapping")
+            if float(node.inputs["Anisotropy"].default_value) != 0:
+                self.warnings.warn(f"{self.owner}: anisotropic glossy reflection is rendered isotropic")
+            roughness = self.scalar(node, "Roughness", "glossy roughness")
+            return self.with_normal(node, Glossy(color=self.value(node, "Color", True), alpha=roughness ** 2))
+        if kind in ("ShaderNodeBsdfGlass", "ShaderNodeBsdfRefraction"):
+            roughness = self.scalar(node, "Roughness", "glass roughness")
+            return self.with_normal(node, Dielectric(
+                color=self.value(node, "Color", True), ior=self.scalar(node, "IOR", "index of refraction"),
+                alpha=0.0 if node.distribution == "SHARP" else roughness ** 2,
+                reflect=kind == "ShaderNodeBsdfGlass"))
+        if kind == "ShaderNodeBsdfTranslucent":
+            return self.with_normal(node, Translucent(self.value(node, "Color", True)))
+        if kind == "ShaderNodeBsdfTransparent":
+            colour = self.value(node, "Color", True)
+            if not isinstance(colour, tuple):
+                self.warnings.warn(f"{self.owner}: a textured Transparent BSDF colour is not supported: its own "
+                                   "value is used")
+                colour = tuple(float(c) for c in node.inputs["Color"].default_value[:3])
+            if max(colour) - min(colour) > 1e-3:
+                self.warnings.warn(f"{self.owner}: a tinted Transparent BSDF passes its grey level (Mitsuba's "
+                                   "opacity is a number)")
+            return Transparent(colour)
+        return None
+
+    def principled(self, node):
+        value = lambda name, colour=False: self.value(node, name, colour)  # noqa: E731
+        self.warn_if_linked(node, ("Coat Normal", "Tangent"), "coat normal and tangent mapping")
+        if float(node.inputs["Subsurface Weight"].default_value) > 0:
+            self.warnings.warn(f"{self.owner}: subsurface scattering is not supported and is ignored")
+        bsdf = Principled(
+            base_color=value("Base Color", True),
+            metallic=value("Metallic"),
+            roughness=value("Roughness"),
+            ior=self.scalar(node, "IOR", "index of refraction"),
+            anisotropic=self.scalar(node, "Anisotropic", "anisotropy"),
+            transmission=self.scalar(node, "Transmission Weight", "transmission"),
+            coat=self.scalar(node, "Coat Weight", "coat"),
+            coat_roughness=self.scalar(node, "Coat Roughness", "coat roughness"),
+            sheen=self.scalar(node, "Sheen Weight", "sheen"),
+        )
+        surface = self.with_normal(node, bsdf)
+        alpha = value("Alpha")
+        if not isinstance(alpha, float) or alpha < 1.0:
+            surface = Mask(alpha, surface)
+        emission = value("Emission Color", True)
+        strength = self.scalar(node, "Emission Strength", "emission strength")
+        if not isinstance(emission, tuple):
+            self.warnings.warn(f"{self.owner}: textured emission is not supported: emission ignored")
+        elif strength > 0 and any(c > 0 for c in emission):
+            return Emission(radiance=tuple(c * strength for c in emission), bsdf=surface)
+        return surface
+
+    def with_normal(self, node, bsdf):
+        """``bsdf`` under the Normal Map or Bump node plugged into ``node``'s Normal input, if any."""
+        if "Normal" not in node.inputs:
+            return bsdf
+        return self._perturbed(node.inputs["Normal"], bsdf, depth=0)
+
+    def _perturbed(self, socket, bsdf, depth: int):
+        source = linked_node(socket)
+        if source is None or depth > 4:
+            return bsdf
+        if source.bl_idname == "ShaderNodeNormalMap":
+            if source.space != "TANGENT":
+                self.warnings.warn(f"{self.owner}: normal map '{source.name}' in {source.space.lower()} space is "
+                                   "not supported (tangent space only): ignored")
+                return bsdf
+            if abs(float(source.inputs["Strength"].default_value) - 1.0) > 1e-6:
+                self.warnings.warn(f"{self.owner}: the strength of normal map '{source.name}' is rendered as 1")
+            texture = self.value(source, "Color", colour=False)
+            if not isinstance(texture, Texture):
+                self.warnings.warn(f"{self.owner}: normal map '{source.name}' needs an image texture: ignored")
+                return bsdf
+            return NormalMap(texture, bsdf)
+        if source.bl_idname == "ShaderNodeBump":
+            height = self.value(source, "Height")
+            # Mitsuba's bumpmap displaces by height × scale along the normal, as Blender's by height × distance;
+            # Blender's strength blends towards the unbumped normal, here it scales the displacement.
+            scale = float(source.inputs["Distance"].default_value) * float(source.inputs["Strength"].default_value)
+            inner = self._perturbed(source.inputs["Normal"], bsdf, depth + 1)
+            if isinstance(height, Checker) or not isinstance(height, Texture):
+                if isinstance(height, Checker):
+                    self.warnings.warn(f"{self.owner}: bump '{source.name}' needs an image texture as height: ignored")
+                return inner
+            if inner is not bsdf:  # Blender applies the Bump's own Normal input first: the outer perturbation
+                return NormalMap(inner.texture, Bump(height, -scale if source.invert else scale, inner.bsdf)) \
+                    if isinstance(inner, NormalMap) else Bump(height, -scale if source.invert else scale, inner)
+            return Bump(height, -scale if source.invert else scale, bsdf)
+        self.warnings.warn(f"{self.owner}: the normal of '{socket.node.name}' comes from '{source.name}' "
+                           f"({source.bl_label}), which is not supported: ignored")
+        return bsdf
 
 
-def input_value(node, name: str, warnings: Warnings, owner: str, *, colour: bool):
-    """The value of input ``name``: its own value, or an image texture plugged into it."""
-    socket = node.inputs[name]
-    source = linked_node(socket)
-    if source is None:
-        return _default(socket, colour)
-    if source.bl_idname == "ShaderNodeTexImage":
-        vector = linked_node(source.inputs["Vector"])
-        if vector is not None and not (vector.bl_idname in ("ShaderNodeUVMap", "ShaderNodeTexCoord")):
-            warnings.warn(f"{owner}: the texture coordinates of '{source.name}' come from '{vector.name}', "
-                          "which is not supported: the active UV map is used")
-        return gather_image(source, warnings, owner=owner)
-    warnings.warn(f"{owner}: input '{name}' of '{node.name}' is driven by '{source.name}' ({source.bl_label}), "
-                  "which is not supported: its own value is used", key=(owner, node.name, name))
-    return _default(socket, colour)
+def _lift_emission(material):
+    """(radiance or None, BSDF or None) of a shader tree: emission becomes the surface's area emitter.
+
+    Cycles adds emission closures wherever they sit in the tree; Mitsuba's emitter
+    belongs to the shape, so the tree's emission is summed (with constant Mix
+    factors) and replaced by black in the BSDF.
+    """
+    if isinstance(material, Emission):
+        return np.asarray(material.radiance, dtype=float), material.bsdf
+    if isinstance(material, Mix):
+        first_radiance, first = _lift_emission(material.first)
+        second_radiance, second = _lift_emission(material.second)
+        if first_radiance is None and second_radiance is None:
+            return None, material
+        factor = material.factor if isinstance(material.factor, float) else 0.5  # see gather_material's warning
+        radiance = (1 - factor) * _zero(first_radiance) + factor * _zero(second_radiance)
+        if first is None and second is None:
+            return radiance, None
+        return radiance, Mix(material.factor, first or BLACK, second or BLACK)
+    if isinstance(material, Add):
+        first_radiance, first = _lift_emission(material.first)
+        second_radiance, second = _lift_emission(material.second)
+        if first_radiance is None and second_radiance is None:
+            return None, material
+        radiance = _zero(first_radiance) + _zero(second_radiance)
+        parts = [part for part in (first, second) if part is not None]
+        return radiance, (None if not parts else parts[0] if len(parts) == 1 else Add(*parts))
+    return None, material
 
 
-def _scalar(node, name: str) -> float:
-    return float(node.inputs[name].default_value)
+def _has_textured_mix(material) -> bool:
+    return any(isinstance(part, Mix) and not isinstance(part.factor, float) and
+               (_lift_emission(part.first)[0] is not None or _lift_emission(part.second)[0] is not None)
+               for part in walk_materials(material))
 
 
-def _warn_if_linked(node, names, warnings: Warnings, owner: str, what: str) -> None:
-    for name in names:
-        if name in node.inputs and linked_node(node.inputs[name]) is not None:
-            warnings.warn(f"{owner}: {what} ('{name}' of '{node.name}') is not supported and is ignored")
+def _zero(radiance):
+    return np.zeros(3) if radiance is None else radiance
 
 
-def _principled(node, warnings: Warnings, owner: str):
-    value = lambda name, colour=False: input_value(node, name, warnings, owner, colour=colour)  # noqa: E731
-    _warn_if_linked(node, ("Normal", "Coat Normal", "Tangent"), warnings, owner, "normal and tangent mapping")
-    if _scalar(node, "Alpha") < 1.0 or linked_node(node.inputs["Alpha"]) is not None:
-        warnings.warn(f"{owner}: alpha (transparency) is not supported: rendered opaque")
-    if _scalar(node, "Subsurface Weight") > 0:
-        warnings.warn(f"{owner}: subsurface scattering is not supported and is ignored")
-    bsdf = Principled(
-        base_color=value("Base Color", True),
-        metallic=value("Metallic"),
-        roughness=value("Roughness"),
-        ior=_scalar(node, "IOR"),
-        anisotropic=_scalar(node, "Anisotropic"),
-        transmission=_scalar(node, "Transmission Weight"),
-        coat=_scalar(node, "Coat Weight"),
-        coat_roughness=_scalar(node, "Coat Roughness"),
-        sheen=_scalar(node, "Sheen Weight"),
-    )
-    emission = value("Emission Color", True)
-    strength = _scalar(node, "Emission Strength")
-    if isinstance(emission, Texture):
-        warnings.warn(f"{owner}: textured emission is not supported: emission ignored")
-    elif strength > 0 and any(c > 0 for c in emission):
-        return Emission(radiance=tuple(c * strength for c in emission), bsdf=bsdf)
-    return bsdf
+def gather_material(material, warnings: Warnings, *, scratch=None):
+    """The neutral material of a Blender material (``None``: the default surface).
 
-
-def _glossy(node, warnings: Warnings, owner: str) -> Glossy:
-    _warn_if_linked(node, ("Normal", "Tangent"), warnings, owner, "normal and tangent mapping")
-    if _scalar(node, "Anisotropy") != 0:
-        warnings.warn(f"{owner}: anisotropic glossy reflection is rendered isotropic")
-    roughness = _scalar(node, "Roughness")
-    if linked_node(node.inputs["Roughness"]) is not None:
-        warnings.warn(f"{owner}: a textured glossy roughness is not supported: its own value is used")
-    return Glossy(color=input_value(node, "Color", warnings, owner, colour=True), alpha=roughness * roughness)
-
-
-def gather_material(material, warnings: Warnings):
-    """The neutral material of a Blender material (``None``: the default surface)."""
+    ``scratch``: the object's :class:`ScratchedMetal` when it carries scratches. It replaces
+    a "Scratch BSDF" node group in the tree, or else the whole material (as before such groups).
+    """
     if material is None:
-        return DEFAULT_MATERIAL
+        return DEFAULT_MATERIAL if scratch is None else scratch
     owner = f"material '{material.name}'"
     tree = material.node_tree
     if tree is None:
-        return Diffuse(tuple(float(c) for c in material.diffuse_color[:3]))
+        return scratch or Diffuse(tuple(float(c) for c in material.diffuse_color[:3]))
     output = tree.get_output_node("CYCLES")
     if output is None:
+        if scratch is not None:
+            return scratch
         warnings.warn(f"{owner} has no Material Output node: rendered as diffuse grey")
         return FALLBACK_MATERIAL
-    shader = linked_node(output.inputs["Surface"])
-    if shader is None:
+    if linked_node(output.inputs["Surface"]) is None:
+        if scratch is not None:
+            return scratch
         warnings.warn(f"{owner}: nothing is connected to the output's Surface: rendered black, as in Cycles")
-        return Diffuse((0.0, 0.0, 0.0))
-    kind = shader.bl_idname
-    if kind == "ShaderNodeBsdfPrincipled":
-        return _principled(shader, warnings, owner)
-    if kind == "ShaderNodeBsdfDiffuse":
-        _warn_if_linked(shader, ("Normal",), warnings, owner, "normal mapping")
-        return Diffuse(input_value(shader, "Color", warnings, owner, colour=True))
-    if kind == "ShaderNodeBsdfAnisotropic":
-        return _glossy(shader, warnings, owner)
-    if kind == "ShaderNodeEmission":
-        colour = input_value(shader, "Color", warnings, owner, colour=True)
-        if isinstance(colour, Texture):
-            warnings.warn(f"{owner}: textured emission is not supported: rendered white")
-            colour = (1.0, 1.0, 1.0)
-        strength = _scalar(shader, "Strength")
-        return Emission(radiance=tuple(c * strength for c in colour))
-    warnings.warn(f"{owner}: shader '{shader.name}' ({shader.bl_label}) is not supported: rendered as diffuse "
-                  f"grey (supported: {', '.join(SUPPORTED_SHADERS.values())})", key=("material", material.name))
-    return FALLBACK_MATERIAL
+        return BLACK
+    shaders = _Shaders(warnings, owner, scratch, material.name)
+    surface = shaders.shader(output.inputs["Surface"])
+    if scratch is not None and not shaders.used_scratch_group:
+        return scratch  # no Scratch BSDF group: the scratch BSDF covers the whole object, as documented
+    radiance, bsdf = _lift_emission(surface)
+    if radiance is not None and _has_textured_mix(surface):
+        warnings.warn(f"{owner}: emission inside a Mix Shader with a textured factor is weighted by one half "
+                      "(an emitter's radiance is one colour here)")
+    if radiance is not None and np.any(radiance > 0):
+        return Emission(radiance=tuple(float(c) for c in radiance), bsdf=bsdf)
+    return bsdf if bsdf is not None else BLACK

@@ -14,7 +14,7 @@ import numpy as np
 from ....mitsuba_bridge.scene import Texture
 from .report import Warnings
 
-__all__ = ["gather_image", "MISSING"]
+__all__ = ["gather_image", "image_pixels", "MISSING"]
 
 MISSING = (1.0, 0.0, 1.0)  # what Blender renders for a missing image
 
@@ -56,3 +56,28 @@ def gather_image(node, warnings: Warnings, *, owner: str) -> Texture:
     return Texture(name=image.name, pixels=np.ascontiguousarray(pixels[..., :3]),
                    srgb=_is_srgb(image) and not image.is_float, interpolation=interpolation)
 
+
+
+def image_pixels(node, *, alpha: bool = False) -> np.ndarray:
+    """An image node's pixels as linear (H, W, 3) float32, row 0 at the top, for baking node operations.
+
+    ``alpha``: the Alpha output (repeated in three channels; 1 where the image has none).
+    Missing images give Blender's magenta (alpha 1).
+    """
+    image = node.image
+    width, height = image.size if image is not None else (0, 0)
+    if width == 0 or height == 0:
+        return np.full((1, 1, 3), 1.0 if alpha else MISSING, dtype=np.float32)
+    channels = image.channels
+    pixels = np.empty(width * height * channels, dtype=np.float32)
+    image.pixels.foreach_get(pixels)
+    pixels = pixels.reshape(height, width, channels)[::-1]
+    if alpha:
+        level = pixels[..., 3] if channels == 4 else np.ones((height, width), np.float32)
+        return np.ascontiguousarray(np.repeat(level[..., None], 3, axis=2))
+    colour = np.repeat(pixels[..., :1], 3, axis=2) if channels < 3 else pixels[..., :3]
+    if _is_srgb(image) and not image.is_float:
+        from ....mitsuba_bridge.builder.resources import srgb_to_linear
+
+        colour = srgb_to_linear(colour)
+    return np.ascontiguousarray(colour, dtype=np.float32)
