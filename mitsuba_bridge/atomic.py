@@ -11,12 +11,14 @@ from __future__ import annotations
 
 import contextlib
 import os
+import secrets
 import shutil
+import stat
 import tempfile
 from pathlib import Path
-from typing import Iterator
+from typing import BinaryIO, Callable, Iterator
 
-__all__ = ["replacing_file", "replacing_folder", "umask_mode"]
+__all__ = ["write_atomically", "replacing_file", "replacing_folder", "umask_mode"]
 
 
 def umask_mode(base: int = 0o666) -> int:
@@ -31,27 +33,105 @@ def _real_target(path: Path) -> Path:
     return Path(os.path.realpath(path)) if path.is_symlink() else path
 
 
+def _mode_for(target: Path) -> int:
+    """The mode the replacement gets: the old file's, else what ``open()`` gives a new file."""
+    try:
+        return stat.S_IMODE(os.stat(target).st_mode)
+    except FileNotFoundError:
+        return umask_mode()
+
+
+def _create_sibling(target: Path, suffix: str = "") -> tuple[Path, int]:
+    """A new hidden file beside ``target``, opened for writing (never follows a planted link)."""
+    folder = target.parent if str(target.parent) else Path(".")
+    flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0) | getattr(os, "O_BINARY", 0)
+    for _ in range(100):
+        temporary = folder / f".{target.name}.{secrets.token_hex(4)}.tmp{suffix}"
+        try:
+            return temporary, os.open(temporary, flags, 0o600)
+        except FileExistsError:
+            continue
+    raise FileExistsError(f"could not create a temporary file beside {target}")
+
+
+def _sync_folder(folder: Path) -> None:
+    """Make the rename durable (POSIX); folders cannot be opened on Windows."""
+    try:
+        descriptor = os.open(folder if str(folder) else ".", os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(descriptor)
+    except OSError:
+        pass
+    finally:
+        os.close(descriptor)
+
+
+def write_atomically(path, write: Callable[[BinaryIO], object]) -> Path:
+    """Call ``write(stream)`` on a temporary sibling of ``path``, then rename it onto ``path``.
+
+    Parameters
+    ----------
+    path:
+        The file to create or replace.  A symbolic link is followed: its target
+        is replaced and the link kept.
+    write:
+        Writes the whole content to the binary stream it is given.
+
+    Returns
+    -------
+    Path
+        ``path`` as given.
+
+    Raises
+    ------
+    OSError, or whatever ``write`` raises
+        The previous file (if any) is then unchanged and the temporary file removed.
+    """
+    path = Path(path)
+    target = _real_target(path)
+    mode = _mode_for(target)
+    temporary, handle = _create_sibling(target)
+    try:
+        os.chmod(temporary, mode)
+        with os.fdopen(handle, "wb") as stream:
+            write(stream)
+            stream.flush()
+            os.fsync(stream.fileno())
+        os.replace(temporary, target)
+    except BaseException:
+        # Interrupted or failed: remove the partial file, keep any old one intact.
+        temporary.unlink(missing_ok=True)
+        raise
+    _sync_folder(target.parent)
+    return path
+
+
 @contextlib.contextmanager
 def replacing_file(path, *, suffix: str | None = None) -> Iterator[Path]:
     """Yield a temporary path beside ``path``; when the block succeeds it becomes ``path``.
 
-    ``suffix`` (default: ``path``'s own) ends the temporary name, for writers
-    that choose the format by extension.  The folder must exist.
+    For writers that take a file name rather than a stream (``mi.Bitmap.write``,
+    OpenEXR).  ``suffix`` (default: ``path``'s own) ends the temporary name, for
+    writers that choose the format by extension.  The folder must exist.  An
+    empty result is refused: it never replaces a good file.
     """
     target = _real_target(Path(path))
     suffix = target.suffix if suffix is None else suffix
-    handle, temporary = tempfile.mkstemp(prefix=f".{target.stem}.", suffix=f".tmp{suffix}", dir=target.parent)
+    mode = _mode_for(target)
+    temporary, handle = _create_sibling(target, suffix)
     os.close(handle)
-    temporary = Path(temporary)
     try:
         yield temporary
         if not temporary.is_file() or temporary.stat().st_size == 0:
             raise OSError(f"{target}: nothing was written")
-        os.chmod(temporary, umask_mode())
+        os.chmod(temporary, mode)
         os.replace(temporary, target)
     except BaseException:
         temporary.unlink(missing_ok=True)
         raise
+    _sync_folder(target.parent)
 
 
 @contextlib.contextmanager

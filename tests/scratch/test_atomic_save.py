@@ -8,7 +8,7 @@ import textwrap
 import pytest
 
 from scratch_iridescence.mitsuba_bridge import scratch
-from scratch_iridescence.mitsuba_bridge.scratch.atomic import write_atomically
+from scratch_iridescence.mitsuba_bridge.atomic import write_atomically
 
 posix_only = pytest.mark.skipif(os.name != "posix", reason="file modes and symlinks as POSIX has them")
 
