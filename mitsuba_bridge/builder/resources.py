@@ -20,10 +20,11 @@ from pathlib import Path
 import numpy as np
 
 from .. import scratch as scratch_io
+from ..colour import srgb_to_linear
 from ..scene import MeshData, ScratchedMetal, Shape, Texture
 from .transform import to_mitsuba
 
-__all__ = ["InMemory", "ToFolder", "srgb_to_linear", "world_geometry", "safe_name"]
+__all__ = ["InMemory", "ToFolder", "world_geometry", "safe_name"]
 
 # Image rows run top-down, Blender's v runs bottom-up: look textures up at (u, 1 - v).
 _FLIP_V = np.array([[1.0, 0, 0, 0], [0, -1.0, 0, 1.0], [0, 0, 1.0, 0], [0, 0, 0, 1.0]])
@@ -32,17 +33,6 @@ _FLIP_V = np.array([[1.0, 0, 0, 0], [0, -1.0, 0, 1.0], [0, 0, 1.0, 0], [0, 0, 0,
 def safe_name(name: str) -> str:
     """``name`` reduced to characters that are safe in file names and XML ids."""
     return re.sub(r"[^A-Za-z0-9_-]", "_", name) or "unnamed"
-
-
-def srgb_to_linear(values: np.ndarray) -> np.ndarray:
-    """The sRGB transfer function inverted (colour channels only; alpha is left alone)."""
-    values = np.asarray(values, dtype=np.float32)
-    out = values.copy()
-    channels = min(values.shape[-1], 3) if values.ndim == 3 else None
-    part = out[..., :channels] if channels else out
-    low = part <= 0.04045
-    part[...] = np.where(low, part / 12.92, ((np.maximum(part, 0.0) + 0.055) / 1.055) ** 2.4)
-    return out
 
 
 def world_geometry(shape: Shape) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
