@@ -143,7 +143,7 @@ def test08_a_failed_re_export_leaves_the_previous_export_whole(variant, tmp_path
         raise OSError(28, "No space left on device")
 
     # Scratch files are written before meshes: the failure comes after the new scratch file exists.
-    monkeypatch.setattr("mitsuba_bridge.ply.write_ply", full_disk)
+    monkeypatch.setattr("scratch_iridescence.mitsuba_bridge.ply.write_ply", full_disk)
     with pytest.raises(OSError, match="No space left"):
         export.export_folder(scratched_scene(30, seed=2), S.RenderSettings(), tmp_path / "out")
     assert folder_bytes(tmp_path / "out") == before  # old scene.xml with its own scratches, the user's file
