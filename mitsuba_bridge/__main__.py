@@ -42,11 +42,15 @@ def _generate(args) -> int:
     except ValueError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
-    scratches = scratch.random_scratches(
-        args.count, seed=args.seed, width=width, depth=depth, length=(args.length_min, args.length_max),
-        vertices=args.vertices, curvature=args.curvature,
-        profile=scratch.Profile[args.profile.upper()],
-        depth_variation=tuple(args.depth_variation), width_variation=tuple(args.width_variation))
+    try:  # every argument is checked before anything is drawn or written
+        scratches = scratch.random_scratches(
+            args.count, seed=args.seed, width=width, depth=depth, length=(args.length_min, args.length_max),
+            vertices=args.vertices, curvature=args.curvature,
+            profile=scratch.Profile[args.profile.upper()],
+            depth_variation=tuple(args.depth_variation), width_variation=tuple(args.width_variation))
+    except ValueError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
     scratch.save(scratches, args.output, compress=args.compress)
     print(f"wrote {args.output}: {scratches!r}")
     return 0

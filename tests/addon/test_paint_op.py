@@ -299,3 +299,49 @@ def test17_a_stroke_sample_exactly_on_a_cube_vertex(cube):
                                {1, 2} if np.allclose(uv_a, uv_b, atol=1e-6) else 2)
             strokes += 1
     assert strokes == 48
+
+
+# ------------------------------------------------------------------ invalid parameters
+LINE = [(-0.5, 0.0, 0.0), (0.5, 0.0, 0.0)]
+
+
+@pytest.mark.parametrize("operator, points, settings, message", [
+    ("paint", LINE, dict(brush_mode="SPRAY", density=0.0), "Density is 0: the spray would paint nothing"),
+    ("paint", LINE, dict(brush_mode="SPRAY", density=np.nan), "Density is not a number"),
+    ("paint", LINE, dict(brush_mode="SPRAY", density=np.inf), r"Spraying about 1.74e\+40 scratches needs about"),
+    ("paint", LINE, dict(brush_mode="SPRAY", radius=np.inf), r"Radius \(3.403e\+38\) is more than 100 times"),
+    ("paint", LINE, dict(brush_mode="SPRAY", jitter=np.nan), "Direction Jitter is not a number"),
+    ("paint", LINE, dict(brush_mode="SPRAY", length_max=np.inf), r"Length Max \(3.403e\+38\) is more than 100"),
+    ("paint", LINE, dict(brush_mode="SPRAY", bend=np.nan), "Bend is not a number"),
+    ("paint", LINE, dict(width_mean=np.inf), "width G.* reaches 3.4e\\+29 m, beyond 0.001 m"),
+    ("paint", LINE, dict(depth_variation_frequency=np.nan), "Depth Frequency is not a number"),
+    ("paint", [(np.nan, 0.0, 0.0), (0.5, 0.0, 0.0)], {}, "1 stroke point of 2 is not a finite location"),
+    ("erase", LINE, dict(radius=np.nan), "Radius is not a number"),
+    ("erase", LINE, dict(radius=np.inf), r"Radius \(3.403e\+38\) is more than 100 times the object's size"),
+    ("erase", LINE * 500, dict(radius=1e-7), "Erasing with a radius of 1e-07 needs about .* GiB"),
+])
+def test18_invalid_brush_parameters_are_refused(scratched_plane, operator, points, settings, message):
+    before = storage.raw_scratch_bytes(scratched_plane)
+    with pytest.raises(RuntimeError, match=message):
+        (paint if operator == "paint" else erase)(points, **settings)
+    assert storage.raw_scratch_bytes(scratched_plane) == before
+
+
+def test19_a_tiny_cutting_radius_is_checked_against_memory(scratched_plane, monkeypatch):
+    # A short stroke with a tiny radius is cheap to sample, but cutting resamples every touched scratch
+    # along its whole length every radius / 4: that is estimated before it is done.
+    import scratch_iridescence.addon.paint as paint_module
+    from scratch_iridescence.addon.units import check_memory
+
+    def ten_megabytes(needed, what, available=None):
+        check_memory(needed, what, available=10 * 2**20)
+
+    monkeypatch.setattr(paint_module, "check_memory", ten_megabytes)
+    scratches = storage.read_scratches(scratched_plane)
+    click = [tuple(plane_points(scratches)[:2].mean(axis=0))]  # on the first scratch (0.1-0.2 m long)
+    before = storage.raw_scratch_bytes(scratched_plane)
+    with pytest.raises(RuntimeError, match=r"Cutting 1 scratch with a radius of 1e-05 needs about \d\d.\d MiB of memory but only 10.0 MiB"):
+        erase(click, radius=1e-5)
+    assert storage.raw_scratch_bytes(scratched_plane) == before
+    assert erase(click, radius=1e-5, erase_mode="WHOLE") == {"FINISHED"}
+    assert storage.read_scratches(scratched_plane) == scratches.select(np.arange(1, 50))
