@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 bpy = pytest.importorskip("bpy")
-from conftest import stroke  # noqa: E402
+from strokes import stroke  # noqa: E402
 from scratch_iridescence.addon import storage  # noqa: E402
 from scratch_iridescence.addon.mesh import world_surface  # noqa: E402
 from scratch_iridescence.addon.uvmap import UVLocator  # noqa: E402
