@@ -95,7 +95,8 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--runs", type=int, default=int(os.environ.get("STRESS_RUNS", 20)),
                         help="how many times to run the suite (default 20, or $STRESS_RUNS)")
-    parser.add_argument("--burners", type=int, default=os.cpu_count() or 1,
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    parser.add_argument("--burners", type=int, default=cores,
                         help="CPU burner processes beside the suite (default: one per core)")
     parser.add_argument("--logs", type=Path, default=ROOT / "out" / "stress", help="folder for the run logs")
     parser.add_argument("pytest_args", nargs="*", help="after --: pytest arguments (default: -m 'not slow')")
