@@ -340,7 +340,8 @@ def test19_a_tiny_cutting_radius_is_checked_against_memory(scratched_plane, monk
     scratches = storage.read_scratches(scratched_plane)
     click = [tuple(plane_points(scratches)[:2].mean(axis=0))]  # on the first scratch (0.1-0.2 m long)
     before = storage.raw_scratch_bytes(scratched_plane)
-    with pytest.raises(RuntimeError, match=r"Cutting 1 scratch with a radius of 1e-05 needs about \d\d.\d MiB of memory but only 10.0 MiB"):
+    message = r"Cutting 1 scratch with a radius of 1e-05 needs about \d\d.\d MiB of memory but only 10.0 MiB"
+    with pytest.raises(RuntimeError, match=message):
         erase(click, radius=1e-5)
     assert storage.raw_scratch_bytes(scratched_plane) == before
     assert erase(click, radius=1e-5, erase_mode="WHOLE") == {"FINISHED"}
