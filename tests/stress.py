@@ -72,19 +72,20 @@ def run_once(index: int, runs: int, pytest_args: list[str], logs: Path) -> tuple
     """One run of the suite; prints its summary line.  Returns (passed, counts)."""
     started = time.perf_counter()
     command = [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", *pytest_args]
-    result = subprocess.run(command, cwd=ROOT, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-                            stderr=subprocess.STDOUT, text=True, errors="replace")
-    seconds = time.perf_counter() - started
     log = logs / f"run-{index:03d}.log"
-    log.write_text(result.stdout)
-    counts = summarise(result.stdout)
+    with open(log, "w") as stream:  # written as it goes: `tail -f` follows a long run
+        returncode = subprocess.run(command, cwd=ROOT, stdin=subprocess.DEVNULL, stdout=stream,
+                                    stderr=subprocess.STDOUT).returncode
+    seconds = time.perf_counter() - started
+    output = log.read_text(errors="replace")
+    counts = summarise(output)
     failed = counts.get("failed", 0) + counts.get("errors", 0)
-    passed = result.returncode == 0 and failed == 0 and counts.get("passed", 0) > 0
+    passed = returncode == 0 and failed == 0 and counts.get("passed", 0) > 0
     extras = "".join(f", {counts[k]} {k}" for k in ("errors", "skipped", "deselected") if counts.get(k))
     print(f"run {index}/{runs}: {counts.get('passed', 0)} passed, {counts.get('failed', 0)} failed{extras} "
-          f"({seconds:.1f} s, exit status {result.returncode})", flush=True)
+          f"({seconds:.1f} s, exit status {returncode})", flush=True)
     if not passed:
-        for line in result.stdout.splitlines():
+        for line in output.splitlines():
             if line.startswith(("FAILED", "ERROR")):
                 print(f"    {line}")
         print(f"    full log: {log}")
