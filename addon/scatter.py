@@ -23,7 +23,7 @@ from ..mitsuba_bridge.scratch import (Distribution, Gaussian, Profile, ScratchSe
                                       sample_parameters)
 from ..mitsuba_bridge.scratch.noise import hash_uint32
 from .surface import Surface
-from .trace import SEAM_IN, SEAM_OUT, START, Pieces, assemble, trace_paths
+from .trace import SEAM_IN, SEAM_OUT, START, Pieces, assemble, enter_towards, trace_paths
 
 __all__ = ["Looks", "ScatterSpec", "Placed", "scatter", "scratches_from_centres", "build_set", "piece_seeds",
            "empty_placed", "SAGITTA_FRACTION", "MAX_SEGMENTS", "estimate_bytes", "expected_vertices",
@@ -218,6 +218,9 @@ def scratches_from_centres(surface: Surface, triangle, bary, direction, length, 
 
 def _trace_centred(surface, triangle, bary, direction, length, turn_angle, turn_every) -> Pieces:
     n = len(triangle)
+    # A centre on an edge (a sprayed centre snapped there) starts both halves in a triangle whose plane
+    # holds the direction: in the other, the direction may have no component and the scratch vanish.
+    triangle, bary = enter_towards(surface, triangle, bary, direction, both_ways=True)
     trace = trace_paths(
         surface, np.r_[triangle, triangle], np.r_[bary, bary], np.r_[direction, -direction],
         np.r_[0.5 * length, 0.5 * length],

@@ -209,7 +209,8 @@ def trace_paths(surface: Surface, triangle, bary, direction, length, *, turn_ang
     return recorder.finish(triangle, bary, direction, travelled)
 
 
-def enter_towards(surface: Surface, triangle, bary, direction) -> tuple[np.ndarray, np.ndarray]:
+def enter_towards(surface: Surface, triangle, bary, direction, *,
+                  both_ways: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Move start points that lie on an edge or a vertex into the triangle the direction enters.
 
     A point on an edge (or a vertex) belongs to every triangle around it, but a
@@ -225,6 +226,10 @@ def enter_towards(surface: Surface, triangle, bary, direction) -> tuple[np.ndarr
     ----------
     triangle : (N,) int, bary : (N, 3) float, direction : (N, 3) float
         Start points (on usable triangles) and 3D directions.
+    both_ways : bool
+        The path goes both ways from the point (a scratch traced from its
+        centre): a triangle that ``-direction`` enters will do as well (the
+        other half then leaves it at once and is unfolded across the edge).
 
     Returns
     -------
@@ -247,6 +252,8 @@ def enter_towards(surface: Surface, triangle, bary, direction) -> tuple[np.ndarr
         np.maximum(b, 0.0, out=b)
         b /= b.sum(axis=1, keepdims=True)
         score = _entering_fraction(surface, candidates, b, direction[i])
+        if both_ways:
+            score = np.maximum(score, _entering_fraction(surface, candidates, b, -direction[i]))
         best = int(np.argmax(score))
         if score[best] > score[0]:
             triangle[i], bary[i] = candidates[best], b[best]
