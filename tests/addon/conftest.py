@@ -6,6 +6,8 @@ different module, so its ``ScratchSet`` is a different class.
 """
 import pytest
 
+from strokes import stroke  # noqa: F401  (kept for tests written against the old location; import strokes)
+
 bpy = pytest.importorskip("bpy")
 
 
