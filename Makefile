@@ -14,13 +14,14 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 PYTEST := $(PY) -m pytest
 
-.PHONY: setup llvm llvm-wheel llvm15-for-tests test test-slow demo paper extension bench clean help
+.PHONY: setup llvm llvm-wheel llvm15-for-tests test test-slow test-stress demo paper extension bench clean help
 
 help:
 	@echo "make demo       render the bundled demo scene to out/"
 	@echo "make paper      reproduce the paper's scenes into out/paper/; write docs/gallery.md and docs/benchmarks.md"
 	@echo "make test       run the test suite (without the slow checks)"
 	@echo "make test-slow  run the slow checks only"
+	@echo "make test-stress [RUNS=20]  run 'make test' RUNS times in a row beside a CPU burner per core"
 	@echo "make bench      run the benchmarks in tests/bench"
 	@echo "make extension  build the extension zips (one per platform, wheels bundled) into dist/"
 
@@ -69,6 +70,12 @@ test: setup llvm15-for-tests
 
 test-slow: setup llvm15-for-tests
 	$(PYTEST) -m slow
+
+# The whole `make test` suite RUNS times in a row with every core kept busy, stopping at the first
+# failing run: flaky tests show up here. One summary line per run and overall; logs in out/stress/.
+RUNS ?= 20
+test-stress: setup
+	$(PY) tests/stress.py --runs $(RUNS)
 
 # Builds the demo plate in code, saves out/demo.blend and renders it through the
 # engine into out/demo.exr (linear) and out/demo.png (display-referred).

@@ -1,10 +1,25 @@
-"""Fixtures shared by every test folder: the real libLLVM 15 for the LLVM-15 simulations."""
+"""Suite-wide settings and fixtures.
+
+Every random test input is reproducible: Hypothesis draws its examples at random
+unless told otherwise, so a property test could pass on one run and fail on the
+next (and its example database would make the outcome depend on earlier runs).
+The ``deterministic`` profile, loaded by default, derives every example from the
+test itself and keeps no database.  Set ``HYPOTHESIS_PROFILE=explore`` to search
+new examples (failures print a ``@reproduce_failure`` blob to pin them down).
+
+The real libLLVM 15, where installed, serves the LLVM-15 simulations.
+"""
 from __future__ import annotations
 
 import glob
+import os
 
 import pytest
+from hypothesis import settings
 
+settings.register_profile("deterministic", derandomize=True, database=None, print_blob=True)
+settings.register_profile("explore", derandomize=False, print_blob=True)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "deterministic"))
 #: Where Debian's ``libllvm15`` (or llvm.org's packages) put libLLVM 15.
 LLVM15_PATTERNS = ("/usr/lib/x86_64-linux-gnu/libLLVM-15.so*", "/usr/lib/llvm-15/lib/libLLVM-15.so*")
 

@@ -11,8 +11,8 @@ from __future__ import annotations
 import numpy as np
 
 from .scatter import Placed, build_set, empty_placed
-from .surface import Surface
-from .trace import BOUNDARY, END, SEAM_IN, START, assemble, trace_paths
+from .surface import SEAM_TOLERANCE_UV, Surface
+from .trace import BOUNDARY, END, SEAM_IN, START, assemble, enter_towards, trace_paths
 
 __all__ = ["pen_scratches", "spray_centres"]
 
@@ -46,13 +46,22 @@ def pen_scratches(surface: Surface, runs, params: dict) -> Placed:
 
     path, order, kind, triangle, uv, point = records
     n_segments = len(hit_t)
-    # A segment's end joins the next segment's start (the next hit) when it arrived
-    # there and lies in the same UV island; then the next start replaces it.
+    # A segment's end joins the next segment's start (the next hit) when it arrived there
+    # and both sides give that point the same UV; then the next start replaces it.  Where they
+    # differ (the hit lies on a UV seam: one side ended on it, the other starts across it)
+    # the scratch is cut there, as a seam crossed inside a segment cuts it.
     last_of_run = np.r_[group[1:] != group[:-1], True]
-    end_triangle = triangle[last_end]
-    next_triangle = np.r_[hit_t[1:], 0]
-    joins = (~last_of_run & arrived
-             & (surface.island[end_triangle] == surface.island[next_triangle]))
+    next_start = np.full(n_segments, -1)
+    starts = np.flatnonzero((kind == START) & (path > 0))
+    next_start[path[starts] - 1] = starts  # the START record of segment i + 1, at index i
+    next_start[last_of_run] = -1
+    joins = ~last_of_run & arrived & (next_start >= 0)
+    if joins.any():
+        end_triangle = triangle[last_end[joins]]
+        next_point = point[next_start[joins]]
+        uv_here = surface.uv_at(end_triangle, surface.barycentric(end_triangle, next_point))
+        jump = np.abs(uv_here - uv[next_start[joins]]).max(axis=1)
+        joins[np.flatnonzero(joins)[jump > SEAM_TOLERANCE_UV]] = False
     drop = np.zeros(len(path), dtype=bool)
     drop[last_end[joins]] = True
     breaks = kind == SEAM_IN
@@ -95,6 +104,9 @@ def _trace_to_targets(surface: Surface, triangle, bary, target):
             active, gap, distance = active[moving], gap[moving], distance[moving]
         if not active.size:
             break
+        # A point on an edge or a vertex (a stroke sample there, or a trace that stopped there)
+        # starts in the triangle the gap leads into: on a fold, not every side can go on.
+        triangle[active], bary[active] = enter_towards(surface, triangle[active], bary[active], gap)
         trace = trace_paths(surface, triangle[active], bary[active], gap, distance)
         keep = (trace.kind != START) | (step == 0)  # later starts repeat the previous end
         parts.append((active[trace.path[keep]], trace.order[keep] + span, trace.kind[keep],

@@ -20,18 +20,23 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ...mitsuba_bridge.errors import ParameterError
-from ...mitsuba_bridge.scratch import Distribution, Gaussian, Profile, ScratchSet, Uniform, sample_parameters
+from ...mitsuba_bridge.scratch import (Distribution, Gaussian, Profile, ScratchSet, Uniform, check_looks,
+                                       sample_parameters)
 from ...mitsuba_bridge.scratch.noise import hash_uint32
 from .surface import Surface
-from .trace import SEAM_IN, SEAM_OUT, START, Pieces, assemble, trace_paths
+from .trace import SEAM_IN, SEAM_OUT, START, Pieces, assemble, enter_towards, trace_paths
 
 __all__ = ["Looks", "ScatterSpec", "Placed", "scatter", "scratches_from_centres", "build_set", "piece_seeds",
-           "empty_placed", "SAGITTA_FRACTION", "MAX_SEGMENTS", "estimate_bytes", "expected_vertices"]
+           "empty_placed", "SAGITTA_FRACTION", "MAX_SEGMENTS", "estimate_bytes", "expected_vertices",
+           "check_length_range", "MAX_LENGTH_PER_SIZE"]
 
 #: Arcs are cut into straight segments whose sagitta is at most this fraction of the width.
 SAGITTA_FRACTION = 0.1
 #: At most this many straight segments per arc (beyond it the sagitta rule is relaxed).
 MAX_SEGMENTS = 256
+#: Longest scratch, in multiples of the surface's size (its bounding box diagonal): a longer one only
+#: winds round and round (on a closed surface) or is cut at the boundary anyway.
+MAX_LENGTH_PER_SIZE = 100.0
 #: Scratches traced per batch (bounds the memory of the temporaries).
 CHUNK = 65536
 # Rough peak memory per scratch and per vertex while generating (bytes; measured, with margin).
@@ -52,6 +57,10 @@ class Looks:
     profile: Profile = Profile.RECTANGULAR
     width_variation: tuple[float, float] = (0.0, 0.0)
     depth_variation: tuple[float, float] = (0.0, 0.0)
+
+    def __post_init__(self):
+        check_looks(width=self.width, depth=self.depth, width_variation=self.width_variation,
+                    depth_variation=self.depth_variation)
 
     def sample(self, rng: np.random.Generator, count: int) -> dict:
         """Per-scratch parameter arrays (the non-geometric fields of a ScratchSet)."""
@@ -82,10 +91,18 @@ class ScatterSpec:
     metres_per_unit: float = 1.0
 
     def __post_init__(self):
-        if self.count < 0:
-            raise ParameterError("count must be >= 0")
-        if not (0 < self.length_min <= self.length_max) or not math.isfinite(self.length_max):
-            raise ParameterError(f"lengths must satisfy 0 < min <= max; got {self.length_min}, {self.length_max}")
+        # Messages name the operator's properties: this is where its numbers become distributions.
+        if self.count < 1:
+            raise ParameterError(f"Count is {self.count}: nothing to generate (ask for at least 1 scratch)")
+        check_length_range(self.length_min, self.length_max)
+        # (1 + 1e-6: a full turn typed into a single-precision property rounds up past 2π.)
+        if self.angle is not None and not (math.isfinite(self.angle) and abs(self.angle) <= 2.0 * math.pi * (1 + 1e-6)):
+            raise ParameterError(f"Angle must lie within ±360°; got {math.degrees(self.angle):g}°")
+        for name, value in (("Spread", self.angle_spread), ("Bend", self.bend)):
+            if not 0.0 <= value <= math.pi * (1 + 1e-6):
+                raise ParameterError(f"{name} must lie in [0°, 180°]; got {math.degrees(value):g}°")
+        if not (math.isfinite(self.metres_per_unit) and self.metres_per_unit > 0):
+            raise ParameterError(f"the scene's metres per unit must be > 0; got {self.metres_per_unit:g}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -103,6 +120,22 @@ class Placed:
     piece_length: np.ndarray = field(repr=False)
     requested: int = 0
     relaxed_arcs: int = 0  # arcs that needed more than MAX_SEGMENTS segments (sagitta rule relaxed)
+
+
+def check_length_range(length_min: float, length_max: float, surface: Surface | None = None) -> None:
+    """Refuse scratch lengths that are not numbers, not ordered, or (given the surface) absurdly long.
+
+    Lengths are surface units; the limit is :data:`MAX_LENGTH_PER_SIZE` times the surface's size.
+    """
+    if not (math.isfinite(length_min) and length_min > 0):
+        raise ParameterError(f"Length Min must be a length > 0; got {length_min:g}")
+    if not math.isfinite(length_max):
+        raise ParameterError(f"Length Max must be a finite length; got {length_max:g}")
+    if length_max < length_min:
+        raise ParameterError("Length Max is below Length Min")
+    if surface is not None and length_max > MAX_LENGTH_PER_SIZE * surface.size:
+        raise ParameterError(f"Length Max ({length_max:.4g}) is more than {MAX_LENGTH_PER_SIZE:g} times the "
+                         f"object's size ({surface.size:.4g}, its bounding box diagonal)")
 
 
 def estimate_bytes(count: int, vertices_per_scratch: float = 4.0) -> int:
@@ -139,6 +172,7 @@ def _segments_for(length, bend, width_units):
 # ------------------------------------------------------------------ generator
 def scatter(surface: Surface, spec: ScatterSpec, rng: np.random.Generator) -> Placed:
     """``spec.count`` scratches uniformly over the surface area (see the module docstring)."""
+    check_length_range(spec.length_min, spec.length_max, surface)
     count = spec.count
     triangle, bary = surface.sample_points(rng, count)
     length = rng.uniform(spec.length_min, spec.length_max, count)
@@ -186,6 +220,9 @@ def scratches_from_centres(surface: Surface, triangle, bary, direction, length, 
 
 def _trace_centred(surface, triangle, bary, direction, length, turn_angle, turn_every) -> Pieces:
     n = len(triangle)
+    # A centre on an edge (a sprayed centre snapped there) starts both halves in a triangle whose plane
+    # holds the direction: in the other, the direction may have no component and the scratch vanish.
+    triangle, bary = enter_towards(surface, triangle, bary, direction, both_ways=True)
     trace = trace_paths(
         surface, np.r_[triangle, triangle], np.r_[bary, bary], np.r_[direction, -direction],
         np.r_[0.5 * length, 0.5 * length],
@@ -200,7 +237,9 @@ def _trace_centred(surface, triangle, bary, direction, length, turn_angle, turn_
     order = np.where(backward, -trace.order[keep], trace.order[keep])
     # Walking backward, the record *after* a seam (in path order) is the one before it in scratch order.
     breaks = np.where(backward, kind == SEAM_OUT, kind == SEAM_IN)
-    tiny = 1e-9 * max(float(length.max(initial=0.0)), 1e-300)
+    # Pieces this short are rounding at seams and boundaries (relative to the object too: a request for
+    # very long scratches must not make every short piece "rounding").
+    tiny = 1e-9 * max(min(float(length.max(initial=0.0)), surface.size), 1e-300)
     return assemble(group, order, trace.uv[keep], trace.point[keep], breaks, min_length=tiny,
                     merge_distance=tiny)
 

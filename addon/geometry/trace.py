@@ -21,12 +21,14 @@ import numpy as np
 
 from .surface import EDGE_CORNERS, Surface
 
-__all__ = ["Trace", "trace_paths", "assemble", "Pieces"]
+__all__ = ["Trace", "trace_paths", "assemble", "Pieces", "enter_towards", "ON_EDGE_BARY"]
 
 # Record kinds.
 START, TURN, EDGE, SEAM_OUT, SEAM_IN, END, BOUNDARY = range(7)
 _STUCK_STEPS = 16  # a path that makes no progress this many times in a row is stopped
 _TURNS_PER_STEP = 8  # turns of an arc taken at once inside a triangle (closed form)
+#: A barycentric coordinate at most this small puts a point on the edge opposite that corner.
+ON_EDGE_BARY = 1e-7
 
 
 @dataclass(frozen=True, eq=False)
@@ -205,6 +207,68 @@ def trace_paths(surface: Surface, triangle, bary, direction, length, *, turn_ang
         active = active[keep]
 
     return recorder.finish(triangle, bary, direction, travelled)
+
+
+def enter_towards(surface: Surface, triangle, bary, direction, *,
+                  both_ways: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Move start points that lie on an edge or a vertex into the triangle the direction enters.
+
+    A point on an edge (or a vertex) belongs to every triangle around it, but a
+    path can only start in one whose plane holds the direction and that the
+    direction points into: on a cube's edge, a direction into the other face
+    projects to nothing in this face's plane.  Of the triangles around the
+    point (the neighbour across the edge; at a vertex every triangle with a
+    corner there) the one keeping most of the direction in its plane, without
+    leaving it at once, is chosen; a point inside its triangle, or already in
+    a fitting one, keeps it.
+
+    Parameters
+    ----------
+    triangle : (N,) int, bary : (N, 3) float, direction : (N, 3) float
+        Start points (on usable triangles) and 3D directions.
+    both_ways : bool
+        The path goes both ways from the point (a scratch traced from its
+        centre): a triangle that ``-direction`` enters will do as well (the
+        other half then leaves it at once and is unfolded across the edge).
+
+    Returns
+    -------
+    (triangle, bary) with the same point in the chosen triangles.
+    """
+    triangle = np.array(triangle, dtype=np.int64)
+    bary = np.array(bary, dtype=np.float64).reshape(-1, 3)
+    direction = np.asarray(direction, dtype=np.float64).reshape(-1, 3)
+    on_edge = bary <= ON_EDGE_BARY
+    for i in np.flatnonzero(on_edge.any(axis=1)):
+        t = triangle[i]
+        point = surface.point(t[None], bary[i][None])[0]
+        if on_edge[i].sum() >= 2:  # a vertex: every triangle with a corner there
+            corner = surface.corners[t, int(np.argmax(bary[i]))]
+            around = np.flatnonzero((surface.corners == corner).all(axis=2).any(axis=1) & surface.usable)
+        else:
+            around = surface.neighbour[t, on_edge[i]]
+        candidates = np.r_[t, around[around >= 0]]
+        b = surface.barycentric(candidates, np.repeat(point[None], len(candidates), axis=0))
+        np.maximum(b, 0.0, out=b)
+        b /= b.sum(axis=1, keepdims=True)
+        score = _entering_fraction(surface, candidates, b, direction[i])
+        if both_ways:
+            score = np.maximum(score, _entering_fraction(surface, candidates, b, -direction[i]))
+        best = int(np.argmax(score))
+        if score[best] > score[0]:
+            triangle[i], bary[i] = candidates[best], b[best]
+    return triangle, bary
+
+
+def _entering_fraction(surface, candidates, bary, direction) -> np.ndarray:
+    """How much of ``direction`` lies in each candidate's plane, or -1 where it leaves the triangle at once."""
+    length = max(float(np.linalg.norm(direction)), 1e-300)
+    normal = surface.normal[candidates]
+    in_plane = direction[None, :] - (normal @ direction)[:, None] * normal
+    kept = np.linalg.norm(in_plane, axis=1) / length
+    velocity = _bary_velocity(surface, candidates, in_plane / length)
+    leaves = ((bary <= ON_EDGE_BARY) & (velocity < -1e-9 * np.abs(velocity).max(axis=1, keepdims=True))).any(axis=1)
+    return np.where(leaves | (kept < 1e-9), -1.0, kept)
 
 
 def _advance_turns(surface, candidates, triangle, bary, direction, remaining, next_turn, travelled,

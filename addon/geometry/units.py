@@ -75,5 +75,13 @@ def check_memory(needed_bytes: int, what: str, available: int | None = None) -> 
     available = available_memory() if available is None else available
     if available is not None and needed_bytes > available:
         raise MemoryLimitError(
-            f"{what} needs about {needed_bytes / 2**30:.1f} GiB of memory but only "
-            f"{available / 2**30:.1f} GiB is free; ask for fewer")
+            f"{what} needs about {_format_bytes(needed_bytes)} of memory but only "
+            f"{_format_bytes(available)} is free; ask for fewer")
+
+
+def _format_bytes(count: float) -> str:
+    """``"1.5 GiB"``, ``"12.0 MiB"``; ``"3.4e+09 GiB"`` for absurd requests."""
+    if count >= 2**30:
+        gib = count / 2**30
+        return f"{gib:.1f} GiB" if gib < 1e6 else f"{gib:.2g} GiB"
+    return f"{count / 2**20:.1f} MiB"

@@ -6,12 +6,14 @@ untouched.  Errors the user can act on become one ``ERROR`` report.
 """
 from __future__ import annotations
 
-from ...mitsuba_bridge.errors import ScratchUserError
+import math
+
+from ...mitsuba_bridge.errors import ParameterError, ScratchUserError
 from ...mitsuba_bridge.scratch import ScratchSet
 from .. import storage
 
 __all__ = ["USER_ERRORS", "ObjectModeOperator", "combine", "write", "metres_per_unit", "plural", "fail",
-           "warn_relaxed_arcs"]
+           "warn_relaxed_arcs", "check_numbers"]
 
 #: Exceptions that become a report for the user: the project's user errors (bad parameters, meshes and
 #: files, MeshError, SurfaceError, ScratchFormatError, MemoryLimitError...), the operating system's
@@ -29,6 +31,24 @@ class ObjectModeOperator:
             cls.poll_message_set("Scratches are edited in Object Mode")
             return False
         return True
+
+
+def check_numbers(operator) -> None:
+    """Refuse an operator whose float properties hold NaN.
+
+    Blender clamps infinities and out-of-range values to a property's limits
+    (or to the largest float where it has none: those values are refused
+    where the numbers become distributions, :mod:`.scatter`), but lets NaN
+    through, which no comparison catches later.  Raises ``ValueError`` naming
+    the property as the redo panel shows it.
+    """
+    for prop in operator.properties.bl_rna.properties:
+        if prop.type != "FLOAT":
+            continue
+        value = getattr(operator.properties, prop.identifier)
+        values = tuple(value) if prop.is_array else (value,)
+        if any(math.isnan(v) for v in values):
+            raise ParameterError(f"{prop.name} is not a number (NaN)")
 
 
 def combine(obj, new: ScratchSet, mode: str) -> ScratchSet:

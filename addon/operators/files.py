@@ -65,30 +65,45 @@ class SCRATCH_OT_import_file(ObjectModeOperator, bpy.types.Operator, ImportHelpe
             if not path.is_file():
                 raise MeshError(f"No scratch file at '{path}'")
             loaded = scratch.load(path)
+            if loaded.count == 0 and self.mode == "ADD":
+                self.report({"INFO"}, f"{path.name} holds no scratches: nothing to add to {obj.name}")
+                return {"CANCELLED"}
+            replaced = storage.scratch_summary(obj)["count"] if self.mode == "REPLACE" else 0
             result = combine(obj, loaded, self.mode)
-            outside = _outside_uv(obj, context, loaded)
+            outside, no_uv_reason = _outside_uv(obj, context, loaded)
             write(obj, result)
         except USER_ERRORS as error:
             return fail(self, error)
         self.report({"INFO"}, f"{obj.name}: imported {plural(loaded.count)} from {path.name}")
-        if outside:
+        if loaded.count == 0 and replaced:
+            self.report({"WARNING"}, f"{path.name} holds no scratches: the {plural(replaced)} of {obj.name} "
+                                     "were replaced by none (Undo brings them back)")
+        if no_uv_reason:
+            self.report({"WARNING"}, f"{no_uv_reason}: the imported scratches are stored but will not show "
+                                     "until it has a UV map with faces (UV > Unwrap)")
+        elif outside:
             verb = "lies" if outside == 1 else "lie"
             self.report({"WARNING"}, f"{plural(outside)} of {path.name} {verb} outside the UV islands of "
                                      f"{obj.name} and will not show")
         return {"FINISHED"}
 
 
-def _outside_uv(obj, context, scratches: ScratchSet) -> int:
-    """How many scratches have a vertex outside every UV triangle (0 when the mesh has no UV map)."""
+def _outside_uv(obj, context, scratches: ScratchSet) -> tuple[int, str]:
+    """(How many scratches have a vertex outside every UV triangle, why that cannot be told or "").
+
+    Scratches live in UV space, so on a mesh without a UV map (or without
+    faces) none of them can show: the reason is returned for a warning.
+    """
     if scratches.count == 0:
-        return 0
+        return 0, ""
     try:
         arrays = mesh_arrays(obj, context.evaluated_depsgraph_get())
-    except MeshError:
-        return 0
+    except MeshError as error:
+        return 0, str(error).split(";")[0]
     triangle, _ = UVLocator(arrays.triangle_uv).locate(scratches.uv)
     missing = triangle < 0
-    return int(len(set(scratches.scratch_index_of_vertices()[missing].tolist()))) if missing.any() else 0
+    outside = int(len(set(scratches.scratch_index_of_vertices()[missing].tolist()))) if missing.any() else 0
+    return outside, ""
 
 
 class SCRATCH_OT_export_file(ObjectModeOperator, bpy.types.Operator, ExportHelper):

@@ -5,9 +5,10 @@ import bpy
 import numpy as np
 from bpy.props import EnumProperty, FloatProperty, IntProperty
 
+from ...mitsuba_bridge.errors import ParameterError
 from .. import storage
-from .editing import (USER_ERRORS, ObjectModeOperator, combine, fail, plural, metres_per_unit, warn_relaxed_arcs,
-                      write)
+from .editing import (USER_ERRORS, ObjectModeOperator, check_numbers, combine, fail, metres_per_unit, plural,
+                      warn_relaxed_arcs, write)
 from ..mesh import check_object, world_surface
 from ..geometry.scatter import ScatterSpec, estimate_bytes, expected_vertices, scatter
 from .properties import LengthProperties, LooksProperties, draw_lengths, draw_looks, mode_property, seed_property
@@ -25,7 +26,7 @@ class SCRATCH_OT_generate(ObjectModeOperator, LooksProperties, LengthProperties,
 
     count: IntProperty(name="Count", description="Number of scratches to scatter (a scratch crossing "
                                                  "a UV seam becomes one scratch per side)",
-                       default=1000, min=1, soft_max=1_000_000)
+                       default=1000, min=0, soft_min=1, soft_max=1_000_000)  # 0 is refused, not clamped
     seed: seed_property()
     mode: mode_property("generated")
     orientation: EnumProperty(
@@ -46,8 +47,9 @@ class SCRATCH_OT_generate(ObjectModeOperator, LooksProperties, LengthProperties,
         obj = context.active_object
         try:
             check_object(obj)
+            check_numbers(self)
             surface = world_surface(obj, context.evaluated_depsgraph_get())
-            length_min, length_max = self.length_range()
+            length_min, length_max = self.length_range(surface)
             spec = ScatterSpec(
                 count=self.count, length_min=length_min, length_max=length_max, looks=self.looks(),
                 angle=None if self.orientation == "RANDOM" else self.angle, angle_spread=self.angle_spread,
@@ -56,6 +58,9 @@ class SCRATCH_OT_generate(ObjectModeOperator, LooksProperties, LengthProperties,
             check_memory(estimate_bytes(spec.count, expected_vertices(spec)) + existing_bytes,
                          f"Generating {plural(spec.count)}")
             placed = scatter(surface, spec, np.random.default_rng(self.seed))
+            if placed.scratches.count == 0:  # never replace scratches by nothing, nor report success
+                raise ParameterError(f"None of the {plural(spec.count)} could be placed on '{obj.name}'; "
+                                 "its scratches are unchanged")
             result = combine(obj, placed.scratches, self.mode)
             write(obj, result)
         except USER_ERRORS as error:

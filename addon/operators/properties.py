@@ -20,7 +20,7 @@ from bpy.props import CollectionProperty, EnumProperty, FloatProperty, IntProper
 
 from ...mitsuba_bridge.errors import ParameterError
 from ...mitsuba_bridge.scratch import Gaussian, Profile, Uniform
-from ..geometry.scatter import Looks
+from ..geometry.scatter import Looks, check_length_range
 from ..geometry.units import NM, format_length
 
 __all__ = ["LooksProperties", "LengthProperties", "StrokeProperties", "NM_UNIT", "seed_property",
@@ -98,6 +98,9 @@ class LooksProperties:
         kind = getattr(self, f"{what}_distribution")
         if kind == "UNIFORM":
             low, high = getattr(self, f"{what}_min") * NM, getattr(self, f"{what}_max") * NM
+            if not (math.isfinite(low) and math.isfinite(high)):
+                raise ParameterError(f"{what.title()}: U[{format_length(low)}, {format_length(high)}] needs finite "
+                                 "numbers")
             if high < low:
                 raise ParameterError(f"{what.title()}: the maximum ({format_length(high)}) is below the "
                                  f"minimum ({format_length(low)})")
@@ -105,6 +108,8 @@ class LooksProperties:
                 raise ParameterError(f"{what.title()}: the maximum must be above 0")
             return Uniform(low, high)
         mean, std = getattr(self, f"{what}_mean") * NM, getattr(self, f"{what}_std") * NM
+        if not (math.isfinite(mean) and math.isfinite(std)):
+            raise ParameterError(f"{what.title()}: G[{format_length(mean)}, {format_length(std)}] needs finite numbers")
         try:
             return Gaussian(mean, std)
         except ParameterError:
@@ -126,10 +131,12 @@ class LengthProperties:
                                  "(gentle arcs; each scratch draws its bend in ± this); 0: straight",
         subtype="ANGLE", default=0.0, min=0.0, max=math.pi)
 
-    def length_range(self) -> tuple[float, float]:
-        """(min, max) in scene units; raises ParameterError with a message for the user."""
-        if self.length_max < self.length_min:
-            raise ParameterError("Length Max is below Length Min")
+    def length_range(self, surface=None) -> tuple[float, float]:
+        """(min, max) in scene units; raises ParameterError with a message for the user.
+
+        ``surface`` (optional) also bounds the length by the object's size.
+        """
+        check_length_range(self.length_min, self.length_max, surface)
         return self.length_min, self.length_max
 
 

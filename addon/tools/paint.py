@@ -14,11 +14,11 @@ from ...mitsuba_bridge.errors import ParameterError
 from ...mitsuba_bridge.scratch import ScratchSet
 from .. import storage
 from ..geometry.brush import pen_scratches, spray_centres
-from ..operators.editing import USER_ERRORS, combine, fail, plural, metres_per_unit, warn_relaxed_arcs, write
+from ..operators.editing import USER_ERRORS, check_numbers, combine, fail, plural, metres_per_unit, warn_relaxed_arcs, write
 from ..geometry.erase import cut_scratches, touched_scratches
 from ..geometry.lines import scratch_lines
 from ..mesh import MeshError, cached, matrix_key, picker_for
-from ..geometry.scatter import estimate_bytes, scratches_from_centres
+from ..geometry.scatter import MAX_LENGTH_PER_SIZE, estimate_bytes, scratches_from_centres
 from ..operators.properties import (LengthProperties, LooksProperties, StrokeProperties, draw_lengths, draw_looks,
                        seed_property)
 from .stroke import SNAP_FRACTION, StrokeOperator, stroke_runs
@@ -31,16 +31,41 @@ __all__ = ["SCRATCH_OT_paint_stroke", "SCRATCH_OT_erase_stroke", "SCRATCH_TOOL_b
 def _stroke_on_surface(operator, context):
     """(object, surface, picker, runs) for a replayed stroke; raises errors for the user."""
     obj = context.active_object
+    check_numbers(operator)
     picker = picker_for(obj, context.evaluated_depsgraph_get())
     surface = picker.surface
     locations, starts = operator.stroke_arrays()
     if len(locations) == 0:
         raise ParameterError("The stroke is empty")
+    bad = ~np.isfinite(locations).all(axis=1)
+    if bad.any():
+        raise ParameterError(f"{plural(int(bad.sum()), 'stroke point')} of {len(locations)} "
+                         f"{'is' if bad.sum() == 1 else 'are'} not a finite location")
+    if operator.radius > MAX_LENGTH_PER_SIZE * surface.size:
+        raise ParameterError(f"Radius ({operator.radius:.4g}) is more than {MAX_LENGTH_PER_SIZE:g} times the "
+                         f"object's size ({surface.size:.4g}, its bounding box diagonal)")
     runs = stroke_runs(picker, locations, starts, SNAP_FRACTION * surface.size)
     if not runs:
         raise MeshError(f"The stroke misses '{obj.name}': none of its {len(locations)} points "
                         "lies on the surface")
     return obj, surface, picker, runs
+
+
+# Peak bytes per sample of the eraser's resampled strokes and scratches (3D and UV points, masks; with margin).
+_BYTES_PER_SAMPLE = 400
+
+
+def _length(runs) -> float:
+    return sum(float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum()) for p in runs)
+
+
+def _samples(length: float, radius: float, pieces: int) -> int:
+    """Samples of a polyline of ``length`` in ``pieces`` resampled every ``radius / 4``."""
+    return int(min(4.0 * length / radius, 2.0**62)) + pieces
+
+
+def _count(value: float) -> str:
+    return f"{value:,.0f}" if value < 1e12 else f"{value:.3g}"
 
 
 class SCRATCH_OT_paint_stroke(StrokeOperator, StrokeProperties, LooksProperties, LengthProperties,
@@ -75,7 +100,8 @@ class SCRATCH_OT_paint_stroke(StrokeOperator, StrokeProperties, LooksProperties,
             else:
                 placed = self._spray(context, surface, picker, runs, looks, rng)
             if placed.scratches.count == 0:
-                self.report({"WARNING"}, "The stroke is too short to paint a scratch")
+                self.report({"WARNING"}, "The stroke is too short to paint a scratch" if self.brush_mode == "PEN"
+                            else "The spray placed no scratch on the surface (raise the density?)")
                 return {"CANCELLED"}
             result = combine(obj, placed.scratches, "ADD")
             write(obj, result)
@@ -87,10 +113,12 @@ class SCRATCH_OT_paint_stroke(StrokeOperator, StrokeProperties, LooksProperties,
         return {"FINISHED"}
 
     def _spray(self, context, surface, picker, runs, looks, rng):
-        length_min, length_max = self.length_range()
+        length_min, length_max = self.length_range(surface)
+        if self.density <= 0:
+            raise ParameterError("Density is 0: the spray would paint nothing")
         travelled = sum(float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum()) for _, _, p in runs)
         expected = self.density * (len(runs) + travelled / self.radius)
-        check_memory(estimate_bytes(int(expected) + 1), f"Spraying about {expected:,.0f} scratches")
+        check_memory(estimate_bytes(min(expected, 2.0**62) + 1), f"Spraying about {_count(expected)} scratches")
         centres, directions = spray_centres(rng, [p for _, _, p in runs], [surface.normal[t] for t, _, _ in runs],
                                             self.radius, self.density, self.jitter)
         triangle, bary, _, hit = picker.nearest(centres, 0.5 * self.radius + SNAP_FRACTION * surface.size)
@@ -144,6 +172,9 @@ class SCRATCH_OT_erase_stroke(StrokeOperator, StrokeProperties, bpy.types.Operat
             key = (digest, matrix_key(obj))  # the bytes' digest: lines never outlive the set they map
             lines = cached("erase_lines", obj, key, lambda: scratch_lines(scratches, locator, surface.corners))
             stroke_points = [p for _, _, p in runs]
+            # The stroke is sampled every radius / 4: a tiny radius on a long stroke costs memory.
+            check_memory(_BYTES_PER_SAMPLE * _samples(_length(stroke_points), self.radius, len(runs)),
+                         f"Erasing with a radius of {self.radius:.3g}")
             touched = touched_scratches(lines.a, lines.b, lines.scratch, stroke_points, self.radius,
                                         scratches.count)
             if not touched.any():
@@ -152,6 +183,11 @@ class SCRATCH_OT_erase_stroke(StrokeOperator, StrokeProperties, bpy.types.Operat
             kept = scratches.select(~touched)
             remaining_lines = lines.without(touched)
             if self.erase_mode == "CUT":
+                # ... and so is every touched scratch, along its whole length.
+                cut_length = float(np.linalg.norm(lines.b - lines.a, axis=1)[touched[lines.scratch]].sum())
+                check_memory(_BYTES_PER_SAMPLE * _samples(cut_length, self.radius, int(touched.sum())),
+                             f"Cutting {plural(int(touched.sum()))} with a radius of {self.radius:.3g}")
+
                 def to_surface(uv):
                     triangle, bary = locator.locate(uv)
                     return surface.point(np.maximum(triangle, 0), bary), triangle >= 0

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from decimal import Decimal, InvalidOperation
 from typing import Union
 
 import numpy as np
@@ -115,7 +116,10 @@ def parse_distribution(text: str, unit: str = "m") -> Distribution:
     exponent = _UNIT_EXPONENTS[unit]
 
     def metres(number: str) -> float:
-        return float(f"{float(number.strip())!r}e{exponent}")
+        try:  # scaled by decimal exponent: "1e30" µm is exactly 1e24 m
+            return float(Decimal(number.strip()).scaleb(exponent))
+        except InvalidOperation:
+            raise ValueError(f"not a number: {number.strip()!r}") from None
 
     text = text.strip()
     try:

@@ -7,12 +7,66 @@ and is what the benchmarks and the BSDF tests use.  Everything is vectorised:
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
-from .distributions import Constant, Distribution
+from ..errors import ParameterError
+from .distributions import Constant, Distribution, Gaussian, Uniform
 from .scratchset import Profile, ScratchSet
 
-__all__ = ["random_scratches", "sample_parameters"]
+__all__ = ["random_scratches", "sample_parameters", "check_looks", "MAX_SCRATCH_SIZE_M",
+           "MAX_VARIATION_AMPLITUDE", "MAX_VARIATION_FREQUENCY"]
+
+#: Largest width or depth (metres) a distribution may reach (its upper bound, a Gaussian's mean + 3 std).
+#: The model is for microscopic scratches, micrometres wide and nanometres deep (MODEL.md §7: the
+#: paper's widths are 0.2-6 µm); a millimetre is far beyond any of them and still catches a mistyped
+#: unit or an infinity that a user interface clamped to its largest float (3.4e38 nm = 3.4e29 m).
+MAX_SCRATCH_SIZE_M = 1e-3
+#: Largest relative amplitude of the width and depth noise (the supplement's largest is 1.1).
+MAX_VARIATION_AMPLITUDE = 10.0
+#: Largest noise frequency: 255 oscillations along a scratch.  The renderer cuts a varying scratch into
+#: four pieces per oscillation (``subdivide``), so the frequency bounds the pieces of every scratch.
+MAX_VARIATION_FREQUENCY = 1.0
+
+
+def _largest(distribution: Distribution) -> float:
+    """The largest value a width or depth distribution practically draws (metres)."""
+    if isinstance(distribution, Uniform):
+        return float(distribution.upper)
+    if isinstance(distribution, Gaussian):
+        return float(distribution.mean + 3.0 * distribution.std)
+    if isinstance(distribution, Constant):
+        return float(distribution.value)
+    raise TypeError(f"not a distribution: {distribution!r}")
+
+
+def check_looks(*, width: Distribution, depth: Distribution, width_variation=(0.0, 0.0),
+                depth_variation=(0.0, 0.0)) -> None:
+    """Refuse parameters no scratch can have, before anything is drawn.
+
+    Raises ``ValueError`` naming the parameter: a width or depth distribution
+    reaching beyond :data:`MAX_SCRATCH_SIZE_M`, or a variation whose amplitude
+    or frequency is not a number in [0, :data:`MAX_VARIATION_AMPLITUDE`] or
+    [0, :data:`MAX_VARIATION_FREQUENCY`].  (The distributions themselves refuse
+    NaN, infinities and the absence of positive values.)
+    """
+    for name, distribution in (("width", width), ("depth", depth)):
+        largest = _largest(distribution)
+        if not largest <= MAX_SCRATCH_SIZE_M:
+            raise ParameterError(f"{name} {distribution} (metres) reaches {largest:.3g} m, beyond "
+                             f"{MAX_SCRATCH_SIZE_M:g} m: scratches are microscopic (micrometres wide, "
+                             "nanometres deep)")
+    for name, variation in (("width variation", width_variation), ("depth variation", depth_variation)):
+        values = np.asarray(variation, dtype=np.float64)
+        if values.shape != (2,):
+            raise ParameterError(f"{name}: expected (amplitude, frequency), got {variation!r}")
+        amplitude, frequency = float(values[0]), float(values[1])
+        if not 0.0 <= amplitude <= MAX_VARIATION_AMPLITUDE:
+            raise ParameterError(f"{name}: amplitude {amplitude:g} must lie in [0, {MAX_VARIATION_AMPLITUDE:g}]")
+        if not 0.0 <= frequency <= MAX_VARIATION_FREQUENCY:
+            raise ParameterError(f"{name}: frequency {frequency:g} must lie in [0, {MAX_VARIATION_FREQUENCY:g}] "
+                             "(1 is 255 oscillations along a scratch)")
 
 
 def sample_parameters(rng: np.random.Generator, count: int, *, width: Distribution,
@@ -22,8 +76,10 @@ def sample_parameters(rng: np.random.Generator, count: int, *, width: Distributi
 
     Width and depth are drawn from their distributions (metres); the variation
     tuples (amplitude, frequency) and the profile apply to every scratch; seeds
-    are drawn uniformly from the uint32 range.
+    are drawn uniformly from the uint32 range.  Impossible parameters raise
+    ``ValueError`` before anything is drawn (:func:`check_looks`).
     """
+    check_looks(width=width, depth=depth, width_variation=width_variation, depth_variation=depth_variation)
     return dict(
         width=width.sample(rng, count),
         depth=depth.sample(rng, count),
@@ -61,8 +117,8 @@ def random_scratches(count: int, *, seed: int = 0, width: Distribution = Constan
         ((u_min, v_min), (u_max, v_max)).  Scratches are moved to lie inside it
         where their size allows.
     """
-    if vertices < 2:
-        raise ValueError("a scratch needs at least 2 vertices")
+    _check_request(count, length, vertices, angle, angle_spread, curvature, region)
+    check_looks(width=width, depth=depth, width_variation=width_variation, depth_variation=depth_variation)
     rng = np.random.default_rng(seed)
     (u0, v0), (u1, v1) = np.asarray(region, dtype=np.float64)
 
@@ -98,3 +154,23 @@ def random_scratches(count: int, *, seed: int = 0, width: Distribution = Constan
     params = sample_parameters(rng, count, width=width, depth=depth, profile=profile,
                                width_variation=width_variation, depth_variation=depth_variation)
     return ScratchSet(uv=uv.reshape(-1, 2), offsets=offsets, **params)
+
+
+def _check_request(count, length, vertices, angle, angle_spread, curvature, region) -> None:
+    """``ValueError`` naming the first impossible argument of :func:`random_scratches`."""
+    if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or count < 0:
+        raise ParameterError(f"count must be a whole number >= 0; got {count!r}")
+    if isinstance(vertices, bool) or not isinstance(vertices, (int, np.integer)) or vertices < 2:
+        raise ParameterError(f"a scratch needs at least 2 vertices; got {vertices!r}")
+    low, high = (float(x) for x in length)
+    if not (math.isfinite(high) and 0.0 < low <= high):
+        raise ParameterError(f"lengths must satisfy 0 < min <= max and be finite (UV units); got {low:g}, {high:g}")
+    if angle is not None and not math.isfinite(angle):
+        raise ParameterError(f"angle must be finite (radians); got {angle:g}")
+    if not (math.isfinite(angle_spread) and angle_spread >= 0.0):
+        raise ParameterError(f"angle spread must be finite and >= 0 (radians); got {angle_spread:g}")
+    if not (math.isfinite(curvature) and curvature >= 0.0):
+        raise ParameterError(f"curvature must be finite and >= 0 (1 / UV units); got {curvature:g}")
+    corners = np.asarray(region, dtype=np.float64)
+    if corners.shape != (2, 2) or not np.all(np.isfinite(corners)) or np.any(corners[1] < corners[0]):
+        raise ParameterError(f"region must be ((u_min, v_min), (u_max, v_max)) with finite bounds; got {region!r}")

@@ -118,7 +118,9 @@ def test_camera_kinds_and_sensor_fits_match_blenders_projection(empty_scene, tmp
 @pytest.mark.parametrize("crop", [False, True])
 def test_border_render_matches_the_same_region_of_a_full_render(lit, tmp_path, crop):
     add_plane(lit, size=0.8, location=(0.5, 0.3, 0.01), mat=emission(strength=3.0))
-    lit.scratch_iridescence.samples = 16
+    # The two means differ by 1.3 % (std over seeds) at 16 samples, too close to the 3 % tolerance
+    # (seeds 0-7 reached -2.4 %); about 0.3 % at 256.
+    lit.scratch_iridescence.samples = 256
     full = render_to(lit, tmp_path / "full.exr")
     render = lit.render
     render.use_border, render.use_crop_to_border = True, crop

@@ -71,6 +71,32 @@ def test06_import_warns_about_scratches_outside_the_uv_map(plane, tmp_path, caps
     assert "1 scratch of outside.npz lies outside the UV islands" in capsys.readouterr().out
 
 
+def test06b_import_onto_a_mesh_without_uv_map_warns(scratched_plane, tmp_path, capsys):
+    mesh = scratched_plane.data
+    while mesh.uv_layers:
+        mesh.uv_layers.remove(mesh.uv_layers[0])
+    mesh.update()
+    other = scratch.random_scratches(7, seed=2)
+    path = scratch.save(other, tmp_path / "seven.npz")
+    assert bpy.ops.scratch.import_file(filepath=str(path), mode="REPLACE") == {"FINISHED"}
+    assert storage.read_scratches(scratched_plane) == other  # stored: they show once the mesh is unwrapped
+    out = capsys.readouterr().out
+    assert "Warning: 'Plane' has no UV map: the imported scratches are stored but will not show" in out
+
+
+def test06c_an_empty_file_never_replaces_scratches_silently(scratched_plane, tmp_path, capsys):
+    before = storage.raw_scratch_bytes(scratched_plane)
+    path = scratch.save(scratch.ScratchSet.empty(), tmp_path / "empty.npz")
+    assert bpy.ops.scratch.import_file(filepath=str(path), mode="ADD") == {"CANCELLED"}
+    assert storage.raw_scratch_bytes(scratched_plane) == before
+    assert "empty.npz holds no scratches: nothing to add to Plane" in capsys.readouterr().out
+    # REPLACE does what it is asked (undo brings them back) and says what was lost.
+    assert bpy.ops.scratch.import_file(filepath=str(path), mode="REPLACE") == {"FINISHED"}
+    assert storage.read_scratches(scratched_plane).count == 0
+    assert ("Warning: empty.npz holds no scratches: the 50 scratches of Plane were replaced by none"
+            in capsys.readouterr().out)
+
+
 def test07_export_refuses_damaged_storage_and_non_meshes(plane, tmp_path):
     plane[storage.DATA_KEY] = b"garbage"
     plane[storage.SUMMARY_KEY] = {"count": 1, "mean_width": 1.0, "mean_depth": 1.0}

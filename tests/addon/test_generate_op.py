@@ -240,6 +240,61 @@ def test15_impossible_settings(scratched_plane, settings, message):
     assert unchanged(scratched_plane, before)
 
 
+# Blender clamps an infinity to the property's limit (the largest float where it has none) and passes
+# NaN through: both must be refused by name, in either mode, and leave the stored bytes as they were.
+@pytest.mark.parametrize("settings, message", [
+    (dict(length_max=np.inf), r"Length Max \(3.403e\+38\) is more than 100 times the object's size"),
+    (dict(length_max=300.0), r"Length Max \(300\) is more than 100 times the object's size \(2.828"),
+    (dict(length_min=np.nan), "Length Min is not a number"),
+    (dict(orientation="FIXED", angle=np.nan), "Angle is not a number"),
+    (dict(orientation="FIXED", angle=np.inf), "Angle must lie within ±360°"),
+    (dict(orientation="FIXED", angle_spread=np.nan), "Spread is not a number"),
+    (dict(bend=np.nan), "Bend is not a number"),
+    (dict(count=0), "Count is 0: nothing to generate"),
+    (dict(count=-5), "Count is 0: nothing to generate"),
+    (dict(width_mean=np.inf), r"width G\[3.40282e\+29, 1.3e-06\] \(metres\) reaches 3.4e\+29 m, beyond 0.001 m"),
+    (dict(width_std=np.inf), "width G.* reaches .* beyond 0.001 m"),
+    (dict(depth_distribution="UNIFORM", depth_max=np.inf), r"depth U\[1e-07, 3.40282e\+29\] .* beyond 0.001 m"),
+    (dict(width_distribution="UNIFORM", width_min=np.nan), "Width Min.* is not a number"),
+    (dict(depth_mean=np.nan), "Depth Mean.* is not a number"),
+    (dict(depth_variation_amplitude=np.inf), r"depth variation: amplitude 3.40282e\+38 must lie in \[0, 10\]"),
+    (dict(width_variation_frequency=np.inf), r"width variation: frequency 3.40282e\+38 must lie in \[0, 1\]"),
+    (dict(width_variation_amplitude=np.nan), "Width Variation is not a number"),
+])
+@pytest.mark.parametrize("mode", ["REPLACE", "ADD"])
+def test15b_invalid_parameters_are_refused_before_anything_changes(empty_scene, settings, message, mode, capsys):
+    bpy.ops.mesh.primitive_plane_add(size=2.0)
+    plane = bpy.context.active_object
+    assert generate(count=200, seed=3) == {"FINISHED"}  # the case: an object with 200 scratches
+    before = storage.raw_scratch_bytes(plane)
+    with pytest.raises(RuntimeError, match=message):
+        generate(**{"count": 10, "mode": mode, **settings})
+    assert unchanged(plane, before) and storage.scratch_summary(plane)["count"] == 200
+    errors = [line for line in capsys.readouterr().out.splitlines() if line.startswith("Error")]
+    assert len(errors) == 1 and "generated" not in errors[0]  # one clear report, no success message
+
+
+def test15c_nothing_placed_is_an_error_not_an_empty_replacement(scratched_plane, monkeypatch):
+    import scratch_iridescence.addon.operators.generate as generate_module
+    from scratch_iridescence.addon.geometry.scatter import empty_placed
+
+    before = storage.raw_scratch_bytes(scratched_plane)
+    monkeypatch.setattr(generate_module, "scatter", lambda *_args, **_kwargs: empty_placed())
+    with pytest.raises(RuntimeError, match="None of the 10 scratches could be placed on 'Plane'; its scratches "
+                                           "are unchanged"):
+        generate(count=10, mode="REPLACE")
+    assert unchanged(scratched_plane, before)
+
+
+def test15d_extreme_but_valid_parameters_work(plane):
+    # The limits refuse only the absurd: 1 mm wide, 10x variation at 255 oscillations, 100x the object's size.
+    assert generate(count=3, width_distribution="UNIFORM", width_min=1e6, width_max=1e6, depth_mean=1e5,
+                    depth_std=3e5, depth_variation_amplitude=10.0, depth_variation_frequency=1.0,
+                    length_min=282.0, length_max=282.8, orientation="FIXED", angle=2 * np.pi) == {"FINISHED"}
+    scratches = storage.read_scratches(plane)
+    assert scratches.count == 3 and np.all(scratches.width == pytest.approx(1e-3))
+
+
 def test16_edit_mode_is_refused(plane):
     bpy.ops.object.mode_set(mode="EDIT")
     with pytest.raises(RuntimeError, match="Object Mode"):

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 bpy = pytest.importorskip("bpy")
-from conftest import stroke  # noqa: E402
+from strokes import stroke  # noqa: E402
 from scratch_iridescence.addon import storage  # noqa: E402
 from scratch_iridescence.addon.mesh import world_surface  # noqa: E402
 from scratch_iridescence.addon.geometry.uvmap import UVLocator  # noqa: E402
@@ -223,3 +223,126 @@ def test15_invoke_without_a_viewport_replays_the_stroke(plane):
     points = [(-0.5, 0.2, 0.0), (0.5, 0.2, 0.0)]
     bpy.ops.scratch.paint_stroke("INVOKE_DEFAULT", stroke=stroke(points), seed=3)
     assert storage.read_scratches(plane).count == 1
+
+
+# ------------------------------------------------------------------ strokes through edges and vertices
+def assert_pen_follows(surface, scratches, path, pieces):
+    """``pieces`` scratches (a count or a set of allowed counts), each continuous in UV, together
+    covering ``path`` exactly once."""
+    assert scratches.count in (pieces if isinstance(pieces, set) else {pieces})
+    triangle, bary = UVLocator(surface.uv).locate(scratches.uv)
+    assert np.all(triangle >= 0)
+    on_surface = surface.point(triangle, bary)
+    assert distance_to_polyline(on_surface, path).max() < 1e-5
+    total = 0.0
+    for i in range(scratches.count):  # the cube's unwrap maps 2 m faces to 0.25 UV: UV steps = steps / 8
+        p = on_surface[scratches.offsets[i]:scratches.offsets[i + 1]]
+        steps = np.linalg.norm(np.diff(p, axis=0), axis=1)
+        np.testing.assert_allclose(np.linalg.norm(np.diff(scratches.polyline(i), axis=0), axis=1), steps / 8,
+                                   rtol=1e-5, atol=1e-7)
+        total += steps.sum()
+    assert total == pytest.approx(np.linalg.norm(np.diff(path, axis=0), axis=1).sum(), rel=1e-5)
+
+
+def cube_edges(surface):
+    """One (triangle, edge) per edge of the cube between two faces (no face diagonals)."""
+    t, k = np.nonzero((surface.neighbour >= 0) & ~surface.flat)
+    keep = t < surface.neighbour[t, k]
+    return list(zip(t[keep], k[keep]))
+
+
+@pytest.mark.parametrize("where", [0.5, 0.3])
+def test16_a_stroke_sample_exactly_on_a_cube_edge(cube, where):
+    # The sample on the edge belongs to both faces; on a seam the scratch must be cut there
+    # (one piece per side, each continuous in UV), elsewhere it goes on as one scratch.
+    surface = world_surface(cube, bpy.context.evaluated_depsgraph_get())
+    edges = cube_edges(surface)
+    assert len(edges) == 12 and sum(surface.seam[t, k] for t, k in edges) == 7
+    for t, k in edges:
+        other, other_k = surface.neighbour[t, k], surface.neighbour_edge[t, k]
+        a, b = surface.corners[t, (k + 1) % 3], surface.corners[t, (k + 2) % 3]
+        on_edge = a + where * (b - a)
+        here, there = -surface.edge_out[t, k], -surface.edge_out[other, other_k]
+        path = np.vstack([on_edge + 0.6 * here, on_edge + 0.3 * here, on_edge, on_edge + 0.3 * there,
+                          on_edge + 0.6 * there])
+        for points in (path, path[1:4]):  # with and without neighbours beside the edge
+            storage.clear_scratches(cube)
+            assert paint(points) == {"FINISHED"}
+            assert_pen_follows(surface, storage.read_scratches(cube), points, 2 if surface.seam[t, k] else 1)
+
+
+def test17_a_stroke_sample_exactly_on_a_cube_vertex(cube):
+    # Through every corner from each face to each other face meeting there: cut wherever the two
+    # faces give the corner different UVs (where they agree, the UV polyline is continuous whether
+    # or not it is cut: the faces' edge may still be a seam elsewhere).
+    surface = world_surface(cube, bpy.context.evaluated_depsgraph_get())
+    corners = np.unique(surface.corners.reshape(-1, 3), axis=0)
+    assert len(corners) == 8
+    strokes = 0
+    for corner in corners:
+        # The three faces at the corner: their triangles with a corner there, grouped by normal.
+        at = np.flatnonzero((surface.corners == corner).all(axis=2).any(axis=1))
+        faces = {tuple(np.round(surface.normal[t]).astype(int)): t for t in at}
+        assert len(faces) == 3
+        for (normal_a, ta), (normal_b, tb) in [(x, y) for x in faces.items() for y in faces.items() if x != y]:
+            # Into each face, off its diagonals: 0.6 m along one of its edges, 0.3 m along the other.
+            inward_a = -corner * (1 - np.abs(normal_a))
+            inward_b = -corner * (1 - np.abs(normal_b))
+            into_a = inward_a * np.where(np.abs(normal_b) > 0, 0.6, 0.3)
+            into_b = inward_b * np.where(np.abs(normal_a) > 0, 0.6, 0.3)
+            points = np.vstack([corner + into_a, corner, corner + into_b])
+            uv_a = surface.uv[ta][(surface.corners[ta] == corner).all(axis=1)][0]
+            uv_b = surface.uv[tb][(surface.corners[tb] == corner).all(axis=1)][0]
+            storage.clear_scratches(cube)
+            assert paint(points) == {"FINISHED"}
+            assert_pen_follows(surface, storage.read_scratches(cube), points,
+                               {1, 2} if np.allclose(uv_a, uv_b, atol=1e-6) else 2)
+            strokes += 1
+    assert strokes == 48
+
+
+# ------------------------------------------------------------------ invalid parameters
+LINE = [(-0.5, 0.0, 0.0), (0.5, 0.0, 0.0)]
+
+
+@pytest.mark.parametrize("operator, points, settings, message", [
+    ("paint", LINE, dict(brush_mode="SPRAY", density=0.0), "Density is 0: the spray would paint nothing"),
+    ("paint", LINE, dict(brush_mode="SPRAY", density=np.nan), "Density is not a number"),
+    ("paint", LINE, dict(brush_mode="SPRAY", density=np.inf), r"Spraying about 1.74e\+40 scratches needs about"),
+    ("paint", LINE, dict(brush_mode="SPRAY", radius=np.inf), r"Radius \(3.403e\+38\) is more than 100 times"),
+    ("paint", LINE, dict(brush_mode="SPRAY", jitter=np.nan), "Direction Jitter is not a number"),
+    ("paint", LINE, dict(brush_mode="SPRAY", length_max=np.inf), r"Length Max \(3.403e\+38\) is more than 100"),
+    ("paint", LINE, dict(brush_mode="SPRAY", bend=np.nan), "Bend is not a number"),
+    ("paint", LINE, dict(width_mean=np.inf), "width G.* reaches 3.4e\\+29 m, beyond 0.001 m"),
+    ("paint", LINE, dict(depth_variation_frequency=np.nan), "Depth Frequency is not a number"),
+    ("paint", [(np.nan, 0.0, 0.0), (0.5, 0.0, 0.0)], {}, "1 stroke point of 2 is not a finite location"),
+    ("erase", LINE, dict(radius=np.nan), "Radius is not a number"),
+    ("erase", LINE, dict(radius=np.inf), r"Radius \(3.403e\+38\) is more than 100 times the object's size"),
+    ("erase", LINE * 500, dict(radius=1e-7), "Erasing with a radius of 1e-07 needs about .* GiB"),
+])
+def test18_invalid_brush_parameters_are_refused(scratched_plane, operator, points, settings, message):
+    before = storage.raw_scratch_bytes(scratched_plane)
+    with pytest.raises(RuntimeError, match=message):
+        (paint if operator == "paint" else erase)(points, **settings)
+    assert storage.raw_scratch_bytes(scratched_plane) == before
+
+
+def test19_a_tiny_cutting_radius_is_checked_against_memory(scratched_plane, monkeypatch):
+    # A short stroke with a tiny radius is cheap to sample, but cutting resamples every touched scratch
+    # along its whole length every radius / 4: that is estimated before it is done.
+    import scratch_iridescence.addon.tools.paint as paint_module
+    from scratch_iridescence.addon.geometry.units import check_memory
+
+    def ten_megabytes(needed, what, available=None):
+        check_memory(needed, what, available=10 * 2**20)
+
+    monkeypatch.setattr(paint_module, "check_memory", ten_megabytes)
+    scratches = storage.read_scratches(scratched_plane)
+    click = [tuple(plane_points(scratches)[:2].mean(axis=0))]  # on the first scratch (0.1-0.2 m long)
+    before = storage.raw_scratch_bytes(scratched_plane)
+    message = r"Cutting 1 scratch with a radius of 1e-05 needs about \d\d.\d MiB of memory but only 10.0 MiB"
+    with pytest.raises(RuntimeError, match=message):
+        erase(click, radius=1e-5)
+    assert storage.raw_scratch_bytes(scratched_plane) == before
+    assert erase(click, radius=1e-5, erase_mode="WHOLE") == {"FINISHED"}
+    assert storage.read_scratches(scratched_plane) == scratches.select(np.arange(1, 50))

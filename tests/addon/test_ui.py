@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 bpy = pytest.importorskip("bpy")
-from conftest import stroke  # noqa: E402
+from strokes import stroke  # noqa: E402
 from scratch_iridescence.addon.ui import overlay, panels  # noqa: E402
 from scratch_iridescence.addon.operators.files import SCRATCH_OT_export_file, SCRATCH_OT_import_file  # noqa: E402
 from scratch_iridescence.addon.operators.generate import SCRATCH_OT_generate  # noqa: E402

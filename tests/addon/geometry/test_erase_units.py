@@ -67,7 +67,7 @@ def test04_lengths_read_naturally(metres, text):
 
 def test05_memory_check_refuses_what_does_not_fit():
     check_memory(10, "Small", available=100)
-    with pytest.raises(MemoryLimitError, match="Big needs about 1.0 GiB.*0.0 GiB is free"):
+    with pytest.raises(MemoryLimitError, match="Big needs about 1.0 GiB of memory but only 0.0 MiB is free"):
         check_memory(2**30, "Big", available=1000)
 
 

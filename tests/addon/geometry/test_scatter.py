@@ -222,3 +222,33 @@ def _locate(surface, point):
         if np.all(b >= -1e-12) and abs(np.dot(point - surface.corners[t, 0], surface.normal[t])) < 1e-12:
             return t, b
     raise AssertionError(point)
+
+
+def test_scratches_centred_exactly_on_a_fold_keep_their_length():
+    # Sprayed centres snapped onto an edge lie on it exactly; the triangle they were found in may be on
+    # the side whose plane does not hold the direction (it then has no component there).  Each must
+    # still give its full length, on both sides of the fold, continuous in UV on either side.
+    surface = Surface.from_arrays(*ring())  # the cube's side faces; x = 1, y = -1 is a right-angle fold
+    heights = np.linspace(-0.8, 0.8, 9)
+    points = np.column_stack([np.ones(9), -np.ones(9), heights])
+    found = []
+    for p in points:  # the point in a triangle of each face
+        for t in range(surface.triangle_count):
+            b = surface.barycentric(np.array([t]), p[None])[0]
+            if np.all(b >= -1e-12) and abs(np.dot(p - surface.corners[t, 0], surface.normal[t])) < 1e-12:
+                found.append((t, np.maximum(b, 0.0)))
+    triangle = np.array([t for t, _ in found])
+    bary = np.array([b for _, b in found])
+    normal = surface.normal[triangle]
+    # Directions lying in the *other* face's plane, across the fold: (0, 1, 0) on face x = 1, (-1, 0, 0) on y = -1.
+    direction = np.where(np.abs(normal[:, [0]]) > 0.5, [[-1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+    count = len(triangle)
+    length = np.full(count, 1.0)
+    params = LOOKS.sample(np.random.default_rng(0), count)
+    placed = scratches_from_centres(surface, triangle, bary, direction, length, params)
+    assert set(placed.source) == set(range(count))
+    np.testing.assert_allclose(np.bincount(placed.source, weights=placed.piece_length), 1.0, rtol=1e-9)
+    s = placed.scratches
+    tri, b = UVLocator(surface.uv).locate(s.uv)
+    assert np.all(tri >= 0)
+    np.testing.assert_allclose(surface.point(tri, b), placed.point, atol=1e-9)  # UV maps back onto the path

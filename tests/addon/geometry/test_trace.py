@@ -4,7 +4,7 @@ import pytest
 
 from meshes import grid, ring, torus
 from scratch_iridescence.addon.geometry.surface import Surface
-from scratch_iridescence.addon.geometry.trace import (BOUNDARY, EDGE, END, SEAM_IN, SEAM_OUT, START, TURN, assemble,
+from scratch_iridescence.addon.geometry.trace import (BOUNDARY, EDGE, END, SEAM_IN, SEAM_OUT, START, TURN, assemble, enter_towards,
                                              trace_paths)
 
 
@@ -118,3 +118,28 @@ def test08_assemble_drops_short_pieces():
     pieces = assemble([0, 0, 1, 1], [0, 1, 0, 1], uv, np.column_stack([uv, np.zeros(4)]),
                       np.zeros(4, dtype=bool), min_length=1e-9)
     assert pieces.count == 1 and list(pieces.source) == [1]
+
+
+def test_a_start_on_a_fold_begins_in_the_face_the_direction_enters(ring_surface):
+    # On the edge x = 1, y = -1 of the ring (faces y = -1 and x = +1 at a right angle), a direction into
+    # face x = +1 has no component in face y = -1's plane: traced from there it would not move.
+    on_edge = np.array([1.0, -1.0, 0.2])
+    into_x_face = np.array([[0.0, 1.0, 0.0]])
+    def holds(t, b):
+        return np.all(b >= -1e-12) and abs(np.dot(on_edge - ring_surface.corners[t, 0], ring_surface.normal[t])) < 1e-12
+
+    starts = [(t, b) for t in range(ring_surface.triangle_count)
+              for b in [ring_surface.barycentric(np.array([t]), on_edge[None])[0]] if holds(t, b)]
+    assert len(starts) == 2  # the point lies in one triangle of each face
+    for t, b in starts:
+        triangle, bary = enter_towards(ring_surface, np.array([t]), np.maximum(b, 0)[None], into_x_face)
+        assert ring_surface.normal[triangle[0]] == pytest.approx([1.0, 0.0, 0.0])
+        np.testing.assert_allclose(ring_surface.point(triangle, bary)[0], on_edge, atol=1e-12)
+        trace = trace_paths(ring_surface, triangle, bary, into_x_face, [0.5])
+        np.testing.assert_allclose(trace.point[-1], [1.0, -0.5, 0.2], atol=1e-12)
+    # A point inside a face, or a direction its own face can take, keeps its triangle.
+    t, b = locate(ring_surface, [0.5, -1.0, 0.2])
+    assert enter_towards(ring_surface, np.array([t]), b[None], into_x_face)[0][0] == t
+    t, b = starts[0]
+    along_edge = np.array([[0.0, 0.0, 1.0]])
+    assert enter_towards(ring_surface, np.array([t]), np.maximum(b, 0)[None], along_edge)[0][0] == t
