@@ -19,7 +19,7 @@ __all__ = ["random_scratches", "sample_parameters", "check_looks", "MAX_SCRATCH_
            "MAX_VARIATION_AMPLITUDE", "MAX_VARIATION_FREQUENCY"]
 
 #: Largest width or depth (metres) a distribution may reach (its upper bound, a Gaussian's mean + 3 std).
-#: The model is for microscopic scratches, micrometres wide and nanometres deep (MODEL.md §7: the
+#: The model is for microscopic scratches, micrometres wide and nanometres deep (docs/model.md §7: the
 #: paper's widths are 0.2-6 µm); a millimetre is far beyond any of them and still catches a mistyped
 #: unit or an infinity that a user interface clamped to its largest float (3.4e38 nm = 3.4e29 m).
 MAX_SCRATCH_SIZE_M = 1e-3

@@ -67,7 +67,7 @@ def test_parse_distribution_scales_any_number_exactly():
     (["--length-max", "inf"], "lengths must satisfy"),
     (["--width", "1e30"], "width 1e\\+24 .* beyond 0.001 m"),
     (["--width", "G[inf, 1]"], "cannot read distribution"),
-    (["--count", "-3"], "count must be a whole number >= 0"),
+    (["--count", "-3"], "--count must be at least 1"),
     (["--depth-variation", "nan", "0.04"], "depth variation: amplitude nan"),
     (["--curvature", "inf"], "curvature must be finite"),
 ])
