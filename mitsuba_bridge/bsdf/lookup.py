@@ -29,7 +29,9 @@ class Grid:
     """The tables of :class:`.tables.GridTables` as Dr.Jit arrays of the active variant."""
 
     segments: object  #: mi.Float, 8 per piece
-    references: object  #: mi.UInt32, piece indices grouped by cell
+    references: object  #: mi.UInt32, piece indices grouped by cell, sorted by offset
+    offsets: object  #: mi.Float, lowest offset of each reference's in-cell part along the cell normal
+    cell_frames: object  #: mi.Float, 4 per cell: normal (u, v), largest offset spread, 0
     cell_start: object  #: mi.UInt32
     origin_u: object  #: opaque mi.Float scalars ...
     origin_v: object
@@ -43,6 +45,8 @@ class Grid:
         return cls(
             segments=_owned(mi.Float, tables.segments.ravel()),
             references=_owned(mi.UInt32, tables.references),
+            offsets=_owned(mi.Float, tables.offsets),
+            cell_frames=_owned(mi.Float, tables.cell_frames.ravel()),
             cell_start=_owned(mi.UInt32, tables.cell_start),
             origin_u=dr.opaque(mi.Float, tables.origin[0]),
             origin_v=dr.opaque(mi.Float, tables.origin[1]),
@@ -105,7 +109,7 @@ def _cell_range(grid: Grid, jac: LocalJacobian, radius, active):
     usable &= (u1 >= 0) & (v1 >= 0) & (u0 < grid.cells_u) & (v0 < grid.cells_v)
     u0, v0 = dr.maximum(u0, 0), dr.maximum(v0, 0)
     u1, v1 = dr.minimum(u1, grid.cells_u - 1), dr.minimum(v1, grid.cells_v - 1)
-    return u0, u1, v0, v1, gu, gv, usable
+    return u0, u1, v0, v1, gu, gv, scale, usable
 
 
 def for_each_segment(grid: Grid, jac: LocalJacobian, radius, state: tuple,
@@ -116,63 +120,86 @@ def for_each_segment(grid: Grid, jac: LocalJacobian, radius, state: tuple,
     called (symbolically) for the lanes that hold such a piece, once per piece.
     ``state`` is a tuple of Dr.Jit arrays; the final state is returned.
 
-    Two nested loops keep the SIMD lanes in step: the inner one only scans (a
-    few gathers and multiplications per reference) until every lane has found
-    its next piece or run out of cells, the outer one then calls ``body`` once
-    for all of them.  The expensive body thus runs as often as the lane with
-    the most pieces in its window needs, not once per reference tested.
+    Per visited cell, only the references whose offset along the cell's normal
+    can reach the window are tested: a binary search finds the first one at or
+    above ``q - R_n - spread`` (q: x0's offset, R_n: the window's half width
+    along the normal), the scan stops above ``q + R_n``.  Two nested loops keep
+    the SIMD lanes in step: the inner one only searches and scans (a few
+    gathers and multiplications per step) until every lane has found its next
+    piece or run out of cells, the outer one then calls ``body`` once for all
+    of them.  The expensive body thus runs as often as the lane with the most
+    pieces in its window needs, not once per reference tested.
     """
-    u0, u1, v0, v1, gu, gv, usable = _cell_range(grid, jac, radius, active)
+    u0, u1, v0, v1, gu, gv, scale, usable = _cell_range(grid, jac, radius, active)
     radius2 = radius * radius
-    u0 = dr.select(usable, u0, 0)
-    u1, v1 = dr.select(usable, u1, 0), dr.select(usable, v1, 0)
-    v0 = dr.select(usable, v0, 0)
-    first_cell = mi.UInt32(v0 * grid.cells_u + u0)
-    start = dr.gather(mi.UInt32, grid.cell_start, first_cell, usable)
-    end = dr.gather(mi.UInt32, grid.cell_start, first_cell + 1, usable)
-    end = dr.select(usable, end, start)
+    zero_i = mi.Int32(0)
+    u1, v1 = dr.select(usable, u1, zero_i), dr.select(usable, v1, zero_i)
+    u_first = dr.select(usable, u0 - 1, zero_i)  # the first step enters cell (u0, v0)
+    v_first = dr.select(usable, v0, zero_i)
 
     def more(u, v, index, end):
         return (index < end) | (u < u1) | (v < v1)
 
-    def scan_step(u, v, index, end, found, piece, segment):
-        in_cell = index < end
-        # ---- lanes done with their cell move to the next one (the next row after u1)
-        advance = ~in_cell & ((u < u1) | (v < v1))
-        new_row = advance & (u >= u1)
-        u = dr.select(advance, dr.select(new_row, u0, u + 1), u)
-        v = dr.select(new_row, v + 1, v)
-        cell = mi.UInt32(v * grid.cells_u + u)
-        # within a row the next cell starts where the last one ended
-        index = dr.select(new_row, dr.gather(mi.UInt32, grid.cell_start, cell, new_row), index)
-        end = dr.select(advance, dr.gather(mi.UInt32, grid.cell_start, cell + 1, advance), end)
-        # ---- lanes inside a cell test one reference and stop on a piece of theirs
-        piece = dr.gather(mi.UInt32, grid.references, index, in_cell)
-        segment, inside, closest_u, closest_v = _piece_geometry(grid, jac, piece, radius2, in_cell)
+    def scan_step(u, v, index, end, search_end, searching, lo_key, hi_key, found, piece, segment):
+        searching = searching & (index < search_end)
+        testing = ~searching & (index < end)
+        advance = ~searching & ~testing & ((u < u1) | (v < v1))
+        # ---- bisection (first reference with offset >= lo_key) and scan share one gather
+        middle = (index + search_end) >> 1
+        key = dr.gather(mi.Float, grid.offsets, dr.select(searching, middle, index), searching | testing)
+        right = searching & (key < lo_key)
+        search_end = dr.select(searching & ~right, middle, search_end)
+        index = dr.select(right, middle + 1, index)
+        # ---- scanning lanes test one reference; past hi_key the cell is done
+        testing &= key <= hi_key
+        index = dr.select(~searching & ~testing & ~advance & (index < end), end, index)
+        piece = dr.gather(mi.UInt32, grid.references, index, testing)
+        segment, inside, closest_u, closest_v = _piece_geometry(grid, jac, piece, radius2, testing)
         owner_u = mi.Int32(dr.floor(dr.clip(gu + closest_u * grid.inverse_cell_size, 0.0,
                                              mi.Float(grid.cells_u - 1))))
         owner_v = mi.Int32(dr.floor(dr.clip(gv + closest_v * grid.inverse_cell_size, 0.0,
                                              mi.Float(grid.cells_v - 1))))
-        found = in_cell & inside & (owner_u == u) & (owner_v == v)
-        index = dr.select(in_cell & ~found, index + 1, index)
-        return u, v, index, end, found, piece, tuple(segment)
+        found = testing & inside & (owner_u == u) & (owner_v == v)
+        index = dr.select(testing & ~found, index + 1, index)
+        # ---- lanes done with their cell enter the next one (the next row after u1)
+        new_row = u >= u1
+        u = dr.select(advance, dr.select(new_row, u0, u + 1), u)
+        v = dr.select(advance & new_row, v + 1, v)
+        cell = mi.UInt32(v * grid.cells_u + u)
+        first = dr.gather(mi.UInt32, grid.cell_start, cell, advance)
+        last = dr.gather(mi.UInt32, grid.cell_start, cell + 1, advance)
+        frame = dr.gather(mi.Vector4f, grid.cell_frames, cell, advance)
+        q = frame.x * (gu - mi.Float(u)) + frame.y * (gv - mi.Float(v))
+        half_width = scale * dr.sqrt(dr.square(jac.j11 * frame.x - jac.j10 * frame.y)
+                                     + dr.square(jac.j00 * frame.y - jac.j01 * frame.x)) + grid.margin
+        index = dr.select(advance, first, index)
+        end = dr.select(advance, last, end)
+        search_end = dr.select(advance, last, search_end)
+        searching = searching | advance
+        lo_key = dr.select(advance, q - half_width - frame.z, lo_key)
+        hi_key = dr.select(advance, q + half_width, hi_key)
+        return u, v, index, end, search_end, searching, lo_key, hi_key, found, piece, tuple(segment)
 
     empty = tuple(dr.zeros(mi.Float) for _ in range(7)) + (dr.zeros(mi.Bool),)
 
-    def visit(u, v, index, end, user):
-        u, v, index, end, found, piece, segment = dr.while_loop(
-            (u, v, index, end, dr.zeros(mi.Bool), dr.zeros(mi.UInt32), empty),
-            lambda u, v, index, end, found, piece, segment: ~found & more(u, v, index, end),
+    def visit(u, v, index, end, search_end, searching, lo_key, hi_key, user):
+        u, v, index, end, search_end, searching, lo_key, hi_key, found, piece, segment = dr.while_loop(
+            (u, v, index, end, search_end, searching, lo_key, hi_key, dr.zeros(mi.Bool),
+             dr.zeros(mi.UInt32), empty),
+            lambda u, v, index, end, search_end, searching, lo_key, hi_key, found, piece, segment:
+                ~found & more(u, v, index, end),
             scan_step, label="scratch_scan")
         segment = SegmentGeometry(*segment)
         user = dr.if_stmt((segment, piece, user), found,
                           lambda segment, piece, user: body(segment, piece, user),
                           lambda segment, piece, user: user, label="scratch_segment")
-        return u, v, dr.select(found, index + 1, index), end, user
+        return u, v, dr.select(found, index + 1, index), end, search_end, searching, lo_key, hi_key, user
 
-    return dr.while_loop((u0, v0, start, end, state),
-                         lambda u, v, index, end, user: more(u, v, index, end),
-                         visit, label="scratch_pieces")[4]
+    zero_u, zero_f = dr.zeros(mi.UInt32), dr.zeros(mi.Float)
+    return dr.while_loop((u_first, v_first, zero_u, zero_u, zero_u, dr.zeros(mi.Bool), zero_f, zero_f, state),
+                         lambda u, v, index, end, search_end, searching, lo_key, hi_key, user:
+                             more(u, v, index, end),
+                         visit, label="scratch_pieces")[8]
 
 
 def segment_at(grid: Grid, jac: LocalJacobian, piece, active) -> SegmentGeometry:

@@ -59,12 +59,14 @@ __all__ = ["GridTables", "build_tables", "aligned", "cell_references", "TARGET_P
 
 #: References per occupied cell aimed at by the automatic cell size.
 TARGET_PER_CELL = 8.0
+#: Tests per cell that the offset spread of nearly parallel pieces may add when cells are coarsened.
+SPREAD_TESTS = 4.0
 #: Longest piece, in UV units.
 MAX_PIECE_UV = 1.0 / 64.0
 #: Most cells in all (cell_start: 4 bytes each).
 MAX_CELLS = 1 << 22
-#: Most references in all (4 bytes each): bounds the cell size below for dense sets.
-MAX_REFERENCES = 1 << 27
+#: Most references in all (8 bytes each): bounds the cell size below for dense sets.
+MAX_REFERENCES = 1 << 26
 #: Pieces in the crop the automatic cell size is chosen on.
 SEARCH_PIECES = 1 << 16
 #: ... and at most this many references in it (the search stops there).
@@ -83,6 +85,8 @@ class GridTables:
 
     segments: np.ndarray
     references: np.ndarray
+    offsets: np.ndarray  #: float32 per reference: lowest offset of its in-cell part along the cell normal (cells)
+    cell_frames: np.ndarray  #: (cells, 4) float32: cell normal n_u, n_v, largest offset spread, 0
     cell_start: np.ndarray
     origin: tuple[float, float]
     cell_size: float
@@ -92,7 +96,8 @@ class GridTables:
 
     @property
     def nbytes(self) -> int:
-        return self.segments.nbytes + self.references.nbytes + self.cell_start.nbytes
+        return sum(x.nbytes for x in (self.segments, self.references, self.offsets, self.cell_frames,
+                                      self.cell_start))
 
 
 def build_tables(scratches: ScratchSet, cell_size: float = 0.0) -> GridTables:
@@ -123,8 +128,9 @@ def build_tables(scratches: ScratchSet, cell_size: float = 0.0) -> GridTables:
     a, b, width, depth = a[order], b[order], width[order], depth[order]
     segments = _segment_rows(a, b, width, depth)
     del width, depth, order
-    references, cell_start = _sorted_references(a, b, h, origin, shape, margin)
-    return GridTables(segments=segments, references=references, cell_start=cell_start,
+    references, offsets, frames, cell_start = _sorted_references(a, b, h, origin, shape, margin)
+    return GridTables(segments=segments, references=references, offsets=offsets, cell_frames=frames,
+                      cell_start=cell_start,
                       origin=(float(origin[0]), float(origin[1])), cell_size=float(h),
                       shape=(int(shape[0]), int(shape[1])), piece_count=len(segments), margin=margin)
 
@@ -170,7 +176,8 @@ def _expand(first, counts):
 def _empty_tables() -> GridTables:
     # One dummy row each: gathers from zero-length arrays raise even when masked.
     return GridTables(segments=np.zeros((1, SEGMENT_COLUMNS), dtype=np.float32),
-                      references=np.zeros(1, dtype=np.uint32),
+                      references=np.zeros(1, dtype=np.uint32), offsets=np.zeros(1, dtype=np.float32),
+                      cell_frames=np.array([[0.0, 1.0, 0.0, 0.0]], dtype=np.float32),
                       cell_start=np.zeros(2, dtype=np.uint32), origin=(0.0, 0.0), cell_size=1.0,
                       shape=(1, 1), piece_count=0, margin=0.0)
 
@@ -244,6 +251,11 @@ def _automatic_cell_size(a, b, lo, hi, floor) -> float:
         if finer > 0.75 * density and h <= typical_piece:
             break
         h, density = 0.5 * h, finer
+    # Coarser cells cost little where the pieces of a cell are nearly parallel (a query bisects
+    # them by offset): double while the offset spread adds at most SPREAD_TESTS tests per cell on
+    # average, and no cell grows longer than a typical piece (collinear pieces share their offset).
+    while 2.0 * h <= typical_piece and _spread_tests(a, b, lo, hi, 2.0 * h) <= SPREAD_TESTS:
+        h *= 2.0
     return h
 
 
@@ -270,6 +282,22 @@ def _references_per_occupied_cell(a, b, lo, hi, h) -> float:
     shape = np.floor((hi - origin) / h).astype(np.int64) + 1
     cells, _ = cell_references(a, b, h, origin, shape, 0.0)
     return len(cells) / len(np.unique(cells))
+
+
+def _spread_tests(a, b, lo, hi, h) -> float:
+    """Mean over occupied cells of (offset spread × references): what the spread adds to a scan."""
+    origin = np.floor(lo / h) * h
+    shape = np.floor((hi - origin) / h).astype(np.int64) + 1
+    cells, piece = cell_references(a, b, h, origin, shape, 0.0)
+    occupied, cells = np.unique(cells, return_inverse=True)
+    normal = _normals(_doubled_angles(a, b, cells, piece, len(occupied)))
+    # offsets are measured in cells of the real grid: restore the cell numbers for the clipping
+    full = np.zeros((int(shape[0] * shape[1]), 2))
+    full[occupied] = normal
+    _, extent = _offsets_in_cell((a - origin) / h, (b - origin) / h, occupied[cells], piece, full, shape, 0.0)
+    spread = np.zeros(len(occupied))
+    np.maximum.at(spread, cells, extent)
+    return float(np.mean(spread * np.bincount(cells)))
 
 
 def _split(arrays, max_length):
@@ -305,33 +333,120 @@ def _segment_rows(a, b, width, depth):
 
 
 def _sorted_references(a, b, h, origin, shape, margin):
-    """``references`` grouped by cell and ``cell_start``.
+    """``references``, ``offsets`` and ``cell_frames`` grouped by cell, and ``cell_start``.
 
-    A counting sort in two chunked passes: the first counts the references per
-    cell, the second writes every one straight to its place, so only the
-    final table is ever held in full.
+    Three chunked passes: the first counts the references per cell and sums
+    their directions (doubled angles: a line and its reverse agree), the
+    second writes every reference straight to its place with the offset of
+    its in-cell part along the cell's normal, the third sorts each cell's
+    references by offset, a block of cells at a time.  Only the final tables
+    are ever held in full.
     """
     cell_count = int(shape[0] * shape[1])
     counts = np.zeros(cell_count, dtype=np.int64)
-    for start in range(0, len(a), CHUNK):
-        part = slice(start, start + CHUNK)
-        cells, _ = cell_references(a[part], b[part], h, origin, shape, margin)
+    doubled = np.zeros((2, cell_count))
+    for part in _chunks(len(a)):
+        cells, piece = cell_references(a[part], b[part], h, origin, shape, margin)
         counts += np.bincount(cells, minlength=cell_count)
+        doubled += _doubled_angles(a[part], b[part], cells, piece, cell_count)
+    frames = _empty_aligned((cell_count, 4), np.float32)
+    frames[:, 0:2] = _normals(doubled)
+    frames[:, 2:] = 0.0
+    del doubled
+    normal = frames[:, 0:2].astype(np.float64)
+
     cell_start = _empty_aligned(cell_count + 1, np.uint32)
     cell_start[0] = 0
     np.cumsum(counts, out=cell_start[1:])
     cursor = cell_start[:-1].astype(np.int64)
-    references = _empty_aligned(max(int(cell_start[-1]), 1), np.uint32)
-    references[:1] = 0
-    for start in range(0, len(a), CHUNK):
-        part = slice(start, start + CHUNK)
+    total = max(int(cell_start[-1]), 1)
+    references = _empty_aligned(total, np.uint32)
+    offsets = _empty_aligned(total, np.float32)
+    references[:1], offsets[:1] = 0, 0.0
+    spread = np.zeros(cell_count)
+    for part in _chunks(len(a)):
         cells, piece = cell_references(a[part], b[part], h, origin, shape, margin)
+        low, extent = _offsets_in_cell((a[part] - origin) / h, (b[part] - origin) / h, cells, piece,
+                                       normal, shape, margin)
         order = np.argsort(cells, kind="stable")
         cells = cells[order]
         first = np.searchsorted(cells, cells, side="left")  # start of each cell's run within the chunk
-        references[cursor[cells] + (np.arange(len(cells)) - first)] = piece[order] + start
+        destination = cursor[cells] + (np.arange(len(cells)) - first)
+        references[destination] = piece[order] + part.start
+        offsets[destination] = low[order]
+        runs = np.flatnonzero(np.r_[True, cells[1:] != cells[:-1]])
+        run_cells = cells[runs]
+        spread[run_cells] = np.maximum(spread[run_cells], np.maximum.reduceat(extent[order], runs))
         cursor += np.bincount(cells, minlength=cell_count)
-    return references, cell_start
+    # float32 offsets are rounded down (a lower bound never excludes a piece): widen the spread by an ulp
+    frames[:, 2] = spread * (1.0 + 1e-6) + 1e-6
+    _sort_cells_by_offset(references, offsets, cell_start)
+    return references, offsets, frames, cell_start
+
+
+def _doubled_angles(a, b, cells, piece, cell_count):
+    """Per cell, the sum of (cos 2φ, sin 2φ) of its pieces' directions (a line and its reverse agree)."""
+    e = (b - a)[piece]
+    norm = np.maximum(np.einsum("ij,ij->i", e, e), 1e-300)
+    return np.stack([np.bincount(cells, (e[:, 0] ** 2 - e[:, 1] ** 2) / norm, minlength=cell_count),
+                     np.bincount(cells, 2.0 * e[:, 0] * e[:, 1] / norm, minlength=cell_count)])
+
+
+def _normals(doubled):
+    """Unit normals (n_u, n_v) of the cells' dominant directions."""
+    angle = 0.5 * np.arctan2(doubled[1], doubled[0])
+    return np.stack([-np.sin(angle), np.cos(angle)], axis=1)
+
+
+def _offsets_in_cell(ga, gb, cells, piece, normal, shape, margin):
+    """Lowest offset (float32, rounded down) and offset extent of each reference's in-cell part, in cells.
+
+    The part of the piece inside the dilated cell [u - m, u + 1 + m] × [v - m, v + 1 + m]
+    (Liang–Barsky clipping), measured from the cell's corner.
+    """
+    nu = int(shape[0])
+    corner = np.stack([cells % nu, cells // nu], axis=1).astype(np.float64)
+    start, direction = ga[piece] - corner, (gb - ga)[piece]
+    t0, t1 = np.zeros(len(piece)), np.ones(len(piece))
+    for axis in range(2):
+        d = direction[:, axis]
+        moving = np.abs(d) > 1e-300
+        safe = np.where(moving, d, 1.0)
+        enter = (-margin - start[:, axis]) / safe
+        leave = (1.0 + margin - start[:, axis]) / safe
+        t0 = np.where(moving, np.maximum(t0, np.minimum(enter, leave)), t0)
+        t1 = np.where(moving, np.minimum(t1, np.maximum(enter, leave)), t1)
+    empty = t0 > t1  # only by rounding (the cell lists the piece): keep the whole piece
+    t0, t1 = np.where(empty, 0.0, t0), np.where(empty, 1.0, t1)
+    n = normal[cells]
+    k0 = np.einsum("ij,ij->i", start + t0[:, None] * direction, n)
+    k1 = np.einsum("ij,ij->i", start + t1[:, None] * direction, n)
+    low, high = np.minimum(k0, k1), np.maximum(k0, k1)
+    low32 = low.astype(np.float32)  # stored as a lower bound: rounded down
+    low32 = np.where(low32 > low, np.nextafter(low32, np.float32(-np.inf)), low32)
+    return low32, high - low32.astype(np.float64)
+
+
+def _sort_cells_by_offset(references, offsets, cell_start, block=1 << 22):
+    """Sort each cell's references by offset, in place, a block of whole cells at a time."""
+    starts = cell_start.astype(np.int64)
+    first_cell = 0
+    while first_cell < len(starts) - 1:
+        last_cell = int(np.searchsorted(starts, starts[first_cell] + block, side="right")) - 1
+        last_cell = min(max(last_cell, first_cell + 1), len(starts) - 1)
+        lo, hi = starts[first_cell], starts[last_cell]
+        if hi > lo:
+            counts = np.diff(starts[first_cell:last_cell + 1])
+            cell = np.repeat(np.arange(len(counts), dtype=np.int32), counts)
+            order = np.lexsort((offsets[lo:hi], cell))
+            references[lo:hi] = references[lo:hi][order]
+            offsets[lo:hi] = offsets[lo:hi][order]
+        first_cell = last_cell
+
+
+def _chunks(count):
+    for start in range(0, count, CHUNK):
+        yield slice(start, min(start + CHUNK, count))
 
 
 ALIGNMENT = 64
