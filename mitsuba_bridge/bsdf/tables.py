@@ -242,10 +242,12 @@ def _automatic_cell_size(a, b, lo, hi, floor) -> float:
     crowded coarse cells hold a ring of short pieces.
     """
     a, b, lo, hi = _search_crop(a, b, lo, hi)
-    h = _power_of_two(float((hi - lo).max()))
-    density = _references_per_occupied_cell(a, b, lo, hi, h)
     spans = float(np.abs(b - a).sum())
     typical_piece = float(np.median(np.abs(b - a).max(axis=1)))
+    # never longer than a typical piece: a cell would list collinear pieces of one scratch, which
+    # share their offset and are all scanned
+    h = min(_power_of_two(float((hi - lo).max())), 0.5 * _power_of_two(typical_piece))
+    density = _references_per_occupied_cell(a, b, lo, hi, h)
     while h > floor and density > TARGET_PER_CELL and spans / (0.5 * h) < SEARCH_REFERENCES:
         finer = _references_per_occupied_cell(a, b, lo, hi, 0.5 * h)
         if finer > 0.75 * density and h <= typical_piece:
