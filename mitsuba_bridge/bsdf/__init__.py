@@ -5,7 +5,8 @@ below do, and need an active variant (``mi.set_variant(...)``).
 
 Layout: pure Dr.Jit maths in :mod:`.complexmath`, :mod:`.faddeeva`,
 :mod:`.window`, :mod:`.profiles`, :mod:`.segment`, :mod:`.sampling`; the
-numpy side in :mod:`.tables` (segment table and UV grid) and :mod:`.memory`
+numpy side in :mod:`.tables` (segment table, UV grid, cell size), :mod:`.references`
+(the grid's references to the pieces, sorted by offset) and :mod:`.memory`
 (in-memory parameters); the per-lane model in :mod:`.model` with the grid walk
 of :mod:`.lookup`; and the thin ``mi.BSDF`` class in :mod:`.plugin`, whose
 docstring is the manual.
