@@ -23,6 +23,9 @@ from .tables import GridTables, aligned
 
 __all__ = ["Grid", "LocalJacobian", "for_each_segment", "jacobian", "segment_at"]
 
+#: Cells with more references than this are bisected by offset; shorter ones are scanned.
+BISECT_ABOVE = 6
+
 
 @dataclass
 class Grid:
@@ -175,7 +178,8 @@ def for_each_segment(grid: Grid, jac: LocalJacobian, radius, state: tuple,
         index = dr.select(advance, first, index)
         end = dr.select(advance, last, end)
         search_end = dr.select(advance, last, search_end)
-        searching = searching | advance
+        # bisect only where it saves steps: a short cell is scanned from its start
+        searching = searching | (advance & (last - first > BISECT_ABOVE))
         lo_key = dr.select(advance, q - half_width - frame.z, lo_key)
         hi_key = dr.select(advance, q + half_width, hi_key)
         return u, v, index, end, search_end, searching, lo_key, hi_key, found, piece, tuple(segment)
