@@ -1,12 +1,14 @@
 """Finding the segments inside a shading point's coherence window (Dr.Jit side).
 
-:func:`for_each_segment` runs nested symbolic ``dr.while_loop`` calls over the grid of
-:mod:`.tables`: over the rows of cells that the window's UV bounding box
-(padded by half a cell, the pieces' reach beyond their cell) touches, each row
-being one contiguous range of the sorted segment table.  Pieces whose centre
-line passes within the window radius are handed to the caller.  Counts and
-sizes are array data, never Python literals, so a scratch set of another size
-reuses the compiled kernels.
+:func:`for_each_segment` runs nested symbolic ``dr.while_loop`` calls over the
+cells of :mod:`.tables` that the window's UV bounding box touches, cell by
+cell, and over each cell's references.  A referenced piece is handed to the
+caller when its centre line passes within the window radius **and** its point
+closest to the shading point lies in the cell being visited: a piece listed in
+several visited cells is thus evaluated exactly once (that point lies inside
+the window, hence inside the visited box, and the piece is listed in its
+cell).  Counts and sizes are array data, never Python literals, so a scratch
+set of another size reuses the compiled kernels.
 """
 from __future__ import annotations
 
@@ -21,17 +23,23 @@ from .tables import GridTables, aligned
 
 __all__ = ["Grid", "LocalJacobian", "for_each_segment", "jacobian", "segment_at"]
 
+#: Cells with more references than this are bisected by offset; shorter ones are scanned.
+BISECT_ABOVE = 6
+
 
 @dataclass
 class Grid:
     """The tables of :class:`.tables.GridTables` as Dr.Jit arrays of the active variant."""
 
     segments: object  #: mi.Float, 8 per piece
+    references: object  #: mi.UInt32, piece indices grouped by cell, sorted by offset
+    offsets: object  #: mi.Float, lowest offset of each reference's in-cell part along the cell normal
+    cell_frames: object  #: mi.Float, 4 per cell: normal (u, v), largest offset spread, 0
     cell_start: object  #: mi.UInt32
     origin_u: object  #: opaque mi.Float scalars ...
     origin_v: object
     inverse_cell_size: object
-    margin: object  #: query padding (cells)
+    margin: object  #: query padding (cells): the tables' dilation
     cells_u: object  #: opaque mi.Int32 scalars
     cells_v: object
 
@@ -39,6 +47,9 @@ class Grid:
     def upload(cls, tables: GridTables) -> "Grid":
         return cls(
             segments=_owned(mi.Float, tables.segments.ravel()),
+            references=_owned(mi.UInt32, tables.references),
+            offsets=_owned(mi.Float, tables.offsets),
+            cell_frames=_owned(mi.Float, tables.cell_frames.ravel()),
             cell_start=_owned(mi.UInt32, tables.cell_start),
             origin_u=dr.opaque(mi.Float, tables.origin[0]),
             origin_v=dr.opaque(mi.Float, tables.origin[1]),
@@ -101,7 +112,7 @@ def _cell_range(grid: Grid, jac: LocalJacobian, radius, active):
     usable &= (u1 >= 0) & (v1 >= 0) & (u0 < grid.cells_u) & (v0 < grid.cells_v)
     u0, v0 = dr.maximum(u0, 0), dr.maximum(v0, 0)
     u1, v1 = dr.minimum(u1, grid.cells_u - 1), dr.minimum(v1, grid.cells_v - 1)
-    return u0, u1, v0, v1, usable
+    return u0, u1, v0, v1, gu, gv, scale, usable
 
 
 def for_each_segment(grid: Grid, jac: LocalJacobian, radius, state: tuple,
@@ -109,60 +120,90 @@ def for_each_segment(grid: Grid, jac: LocalJacobian, radius, state: tuple,
     """Fold ``body`` over the pieces whose centre line passes within ``radius`` (µm) of x0.
 
     ``body(segment: SegmentGeometry, piece: mi.UInt32, state) -> state`` is
-    called (symbolically) for the lanes that hold such a piece.  ``state`` is a
-    tuple of Dr.Jit arrays; the final state is returned.
+    called (symbolically) for the lanes that hold such a piece, once per piece.
+    ``state`` is a tuple of Dr.Jit arrays; the final state is returned.
 
-    Two nested loops keep the SIMD lanes in step: the inner one only scans (a
-    few gathers and multiplications per piece) until every lane has found its
-    next piece inside the window or run out, the outer one then calls ``body``
-    once for all of them.  The expensive body thus runs as often as the lane
-    with the most pieces in its window needs, not once per piece tested.
+    Per visited cell, only the references whose offset along the cell's normal
+    can reach the window are tested: a binary search finds the first one at or
+    above ``q - R_n - spread`` (q: x0's offset, R_n: the window's half width
+    along the normal), the scan stops above ``q + R_n``.  Two nested loops keep
+    the SIMD lanes in step: the inner one only searches and scans (a few
+    gathers and multiplications per step) until every lane has found its next
+    piece or run out of cells, the outer one then calls ``body`` once for all
+    of them.  The expensive body thus runs as often as the lane with the most
+    pieces in its window needs, not once per reference tested.
     """
-    u0, u1, v0, v1, usable = _cell_range(grid, jac, radius, active)
+    u0, u1, v0, v1, gu, gv, scale, usable = _cell_range(grid, jac, radius, active)
     radius2 = radius * radius
+    zero_i = mi.Int32(0)
+    u1, v1 = dr.select(usable, u1, zero_i), dr.select(usable, v1, zero_i)
+    u_first = dr.select(usable, u0 - 1, zero_i)  # the first step enters cell (u0, v0)
+    v_first = dr.select(usable, v0, zero_i)
 
-    def row_range(v, active):
-        first = mi.UInt32(v * grid.cells_u + u0)
-        last = mi.UInt32(v * grid.cells_u + u1 + 1)
-        return (dr.gather(mi.UInt32, grid.cell_start, first, active),
-                dr.gather(mi.UInt32, grid.cell_start, last, active))
+    def more(u, v, index, end):
+        return (index < end) | (u < u1) | (v < v1)
 
-    start, end = row_range(v0, usable)
-    rows_left = dr.select(usable, mi.UInt32(v1 - v0), 0)
-
-    def more(index, end, rows_left):
-        return (index < end) | (rows_left > 0)
-
-    def scan_step(v, index, end, rows_left, found, segment):
-        in_row = index < end
-        # ---- lanes done with their row load the next one
-        advance = ~in_row & (rows_left > 0)
-        next_start, next_end = row_range(v + 1, advance)
-        # ---- lanes inside a row test one piece and stop on a hit
-        segment, inside = _piece_geometry(grid, jac, index, radius2, in_row)
-        found = in_row & inside
-        index = dr.select(advance, next_start, dr.select(in_row & ~found, index + 1, index))
-        end = dr.select(advance, next_end, end)
-        v = dr.select(advance, v + 1, v)
-        rows_left = dr.select(advance, rows_left - 1, rows_left)
-        return v, index, end, rows_left, found, tuple(segment)
+    def scan_step(u, v, index, end, search_end, searching, lo_key, hi_key, found, piece, segment):
+        searching = searching & (index < search_end)
+        testing = ~searching & (index < end)
+        advance = ~searching & ~testing & ((u < u1) | (v < v1))
+        # ---- bisection (first reference with offset >= lo_key) and scan share one gather
+        middle = (index + search_end) >> 1
+        key = dr.gather(mi.Float, grid.offsets, dr.select(searching, middle, index), searching | testing)
+        right = searching & (key < lo_key)
+        search_end = dr.select(searching & ~right, middle, search_end)
+        index = dr.select(right, middle + 1, index)
+        # ---- scanning lanes test one reference; past hi_key the cell is done
+        testing &= key <= hi_key
+        index = dr.select(~searching & ~testing & ~advance & (index < end), end, index)
+        piece = dr.gather(mi.UInt32, grid.references, index, testing)
+        segment, inside, closest_u, closest_v = _piece_geometry(grid, jac, piece, radius2, testing)
+        owner_u = mi.Int32(dr.floor(dr.clip(gu + closest_u * grid.inverse_cell_size, 0.0,
+                                             mi.Float(grid.cells_u - 1))))
+        owner_v = mi.Int32(dr.floor(dr.clip(gv + closest_v * grid.inverse_cell_size, 0.0,
+                                             mi.Float(grid.cells_v - 1))))
+        found = testing & inside & (owner_u == u) & (owner_v == v)
+        index = dr.select(testing & ~found, index + 1, index)
+        # ---- lanes done with their cell enter the next one (the next row after u1)
+        new_row = u >= u1
+        u = dr.select(advance, dr.select(new_row, u0, u + 1), u)
+        v = dr.select(advance & new_row, v + 1, v)
+        cell = mi.UInt32(v * grid.cells_u + u)
+        first = dr.gather(mi.UInt32, grid.cell_start, cell, advance)
+        last = dr.gather(mi.UInt32, grid.cell_start, cell + 1, advance)
+        frame = dr.gather(mi.Vector4f, grid.cell_frames, cell, advance)
+        q = frame.x * (gu - mi.Float(u)) + frame.y * (gv - mi.Float(v))
+        half_width = scale * dr.sqrt(dr.square(jac.j11 * frame.x - jac.j10 * frame.y)
+                                     + dr.square(jac.j00 * frame.y - jac.j01 * frame.x)) + grid.margin
+        index = dr.select(advance, first, index)
+        end = dr.select(advance, last, end)
+        search_end = dr.select(advance, last, search_end)
+        # bisect only where it saves steps: a short cell is scanned from its start
+        searching = searching | (advance & (last - first > BISECT_ABOVE))
+        lo_key = dr.select(advance, q - half_width - frame.z, lo_key)
+        hi_key = dr.select(advance, q + half_width, hi_key)
+        return u, v, index, end, search_end, searching, lo_key, hi_key, found, piece, tuple(segment)
 
     empty = tuple(dr.zeros(mi.Float) for _ in range(7)) + (dr.zeros(mi.Bool),)
 
-    def visit(v, index, end, rows_left, user):
-        v, index, end, rows_left, found, segment = dr.while_loop(
-            (v, index, end, rows_left, dr.zeros(mi.Bool), empty),
-            lambda v, index, end, rows_left, found, segment: ~found & more(index, end, rows_left),
+    def visit(u, v, index, end, search_end, searching, lo_key, hi_key, user):
+        u, v, index, end, search_end, searching, lo_key, hi_key, found, piece, segment = dr.while_loop(
+            (u, v, index, end, search_end, searching, lo_key, hi_key, dr.zeros(mi.Bool),
+             dr.zeros(mi.UInt32), empty),
+            lambda u, v, index, end, search_end, searching, lo_key, hi_key, found, piece, segment:
+                ~found & more(u, v, index, end),
             scan_step, label="scratch_scan")
         segment = SegmentGeometry(*segment)
-        user = dr.if_stmt((segment, index, user), found,
+        user = dr.if_stmt((segment, piece, user), found,
                           lambda segment, piece, user: body(segment, piece, user),
                           lambda segment, piece, user: user, label="scratch_segment")
-        return v, dr.select(found, index + 1, index), end, rows_left, user
+        return u, v, dr.select(found, index + 1, index), end, search_end, searching, lo_key, hi_key, user
 
-    return dr.while_loop((v0, start, end, rows_left, state),
-                         lambda v, index, end, rows_left, user: more(index, end, rows_left),
-                         visit, label="scratch_pieces")[4]
+    zero_u, zero_f = dr.zeros(mi.UInt32), dr.zeros(mi.Float)
+    return dr.while_loop((u_first, v_first, zero_u, zero_u, zero_u, dr.zeros(mi.Bool), zero_f, zero_f, state),
+                         lambda u, v, index, end, search_end, searching, lo_key, hi_key, user:
+                             more(u, v, index, end),
+                         visit, label="scratch_pieces")[8]
 
 
 def segment_at(grid: Grid, jac: LocalJacobian, piece, active) -> SegmentGeometry:
@@ -171,7 +212,8 @@ def segment_at(grid: Grid, jac: LocalJacobian, piece, active) -> SegmentGeometry
 
 
 def _piece_geometry(grid: Grid, jac: LocalJacobian, piece, radius2, active):
-    """The piece seen from x0 (local frame, µm), and whether it passes within the window radius."""
+    """The piece seen from x0 (local frame, µm), whether it passes within the window radius,
+    and its point closest to x0 relative to x0 (UV)."""
     head = dr.gather(mi.Vector4f, grid.segments, 2 * piece, active)  # a_hi, a_lo
     tail = dr.gather(mi.Vector4f, grid.segments, 2 * piece + 1, active)  # e (UV), W (µm), ±D (µm)
     du = (head.x - jac.uv.x) + head.z
@@ -190,4 +232,7 @@ def _piece_geometry(grid: Grid, jac: LocalJacobian, piece, radius2, active):
     distance2 = dr.fma(a_perp, a_perp, dr.square(c + along))
     segment = SegmentGeometry(c=c, length=length, a_perp=a_perp, dx=dx, dy=dy,
                               width=tail.z, depth=dr.abs(tail.w), triangular=tail.w < 0.0)
-    return segment, usable & (distance2 < radius2)
+    t = along * inv_length  # the closest point's parameter: the same in UV as in the local frame
+    closest_u = dr.fma(t, tail.x, du)
+    closest_v = dr.fma(t, tail.y, dv)
+    return segment, usable & (distance2 < radius2), closest_u, closest_v

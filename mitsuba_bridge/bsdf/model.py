@@ -44,6 +44,7 @@ class Model:
     eta: object = None  #: mi.Texture or None (perfect mirror)
     k: object = None
     diffuse: object = None  #: mi.Texture or None
+    depth_phase: str = "kirchhoff"  #: or "incidence" (docs/bsdf.md, Energy)
 
     # ------------------------------------------------------------- pieces
     def _reflectance(self, si, cos_theta, active):
@@ -85,7 +86,10 @@ class Model:
         spectrum = mi.Spectrum
         xi_x = spectrum((wi.x + wo.x) / wavelength)
         xi_y = spectrum((wi.y + wo.y) / wavelength)
-        k_z = spectrum((2.0 * math.pi) * (wi.z + wo.z) / wavelength)
+        if self.depth_phase == "incidence":  # a screen fixed by ω_i: Parseval bounds the albedo
+            k_z = spectrum((4.0 * math.pi) * wi.z / wavelength)
+        else:
+            k_z = spectrum((2.0 * math.pi) * (wi.z + wo.z) / wavelength)
         lobe = spectrum(mirror_lobe(xi_x * xi_x + xi_y * xi_y, sigma))
 
         # ---- hero-wavelength quantities of the sampling density

@@ -25,3 +25,6 @@ BASE_MATERIALS = (
     ("Cr", "Chromium", "Chromium (Mitsuba conductor 'Cr')"),
     ("none", "Perfect Mirror", "Reflects everything (no Fresnel term)"),
 )
+#: Depth phase per unit depth: "kirchhoff" 2π(γ_i + γ_o)/λ (docs/model.md §2) or "incidence" 4πγ_i/λ.
+DEFAULT_DEPTH_PHASE = "kirchhoff"
+DEPTH_PHASES = ("kirchhoff", "incidence")

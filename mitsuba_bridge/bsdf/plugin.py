@@ -69,6 +69,13 @@ diffraction inside a Gaussian coherence window around each shading point.
      - float
      - UV size of the lookup grid's cells; 0 (default) picks it from the
        scratch density.  A hint for very dense or very sparse sets only.
+   * - depth_phase
+     - string
+     - ``kirchhoff`` (default, the paper's depth phase 2π(γ_i + γ_o)d/λ,
+       reciprocal, deep grooves may reflect more than they receive) or
+       ``incidence`` (4πγ_i d/λ, a phase screen fixed by the incident
+       direction: conserves energy for any depth, but is not reciprocal and
+       departs from the Kirchhoff field off the mirror direction).
 
 The model.  Each evaluation is one coherence window w = exp(-|x - x0|²/2σ²) at
 the shading point x0.  The reflected far field is the mirror lobe of the
@@ -86,7 +93,9 @@ a glossy lobe, never a delta, so scratched and unscratched points are one
 BSDF; its albedo is F.  Energy: light only moves between directions for
 shallow scratches; the depth phase 2π(γ_i + γ_o)d/λ depends on the outgoing
 direction, so deep grooves can reflect a few percent more than they receive
-(the scalar model itself, not this implementation: docs/bsdf.md).  Scratch
+(the scalar model itself, not this implementation: docs/bsdf.md);
+depth_phase="incidence" fixes the screen by the incident direction and
+conserves energy for any depth, at the price of reciprocity.  Scratch
 crossings add their transfer functions (the paper's limitation).  Scratches
 are UV polylines (mesh UVs required); phases are formed relative to x0, so
 float32 suffices at any object size.  Renders need an unpolarised spectral JIT
@@ -169,6 +178,10 @@ def _make_class() -> type:
             self.unit_scale = dr.opaque(mi.Float, _positive(props, "unit_scale", 1.0))
             self.cell_size = float(props.get("cell_size", 0.0))
             self.coherent = bool(props.get("coherent", True))
+            self.depth_phase = str(props.get("depth_phase", parameters.DEFAULT_DEPTH_PHASE))
+            if self.depth_phase not in parameters.DEPTH_PHASES:
+                raise ValueError(f"parameter 'depth_phase' must be one of {', '.join(parameters.DEPTH_PHASES)}, "
+                                 f"got {self.depth_phase!r}")
 
             has_eta, has_k = "eta" in props, "k" in props
             if has_eta != has_k:
@@ -203,7 +216,8 @@ def _make_class() -> type:
             sigma = dr.opaque(mi.Float, dr.slice(self.coherence_diameter) * (1e6 / 6.0))
             scale = dr.opaque(mi.Float, dr.slice(self.unit_scale) * 1e6)
             self.model = Model(grid=self.grid, sigma=sigma, micrometres_per_unit=scale,
-                               coherent=self.coherent, eta=self.eta, k=self.k, diffuse=self.diffuse)
+                               coherent=self.coherent, eta=self.eta, k=self.k, diffuse=self.diffuse,
+                               depth_phase=self.depth_phase)
 
         # ------------------------------------------------------ interface
         def _lobes(self, ctx):
@@ -267,7 +281,7 @@ def _make_class() -> type:
                     f"coherence_diameter={dr.slice(self.coherence_diameter):.3g} m, "
                     f"unit_scale={dr.slice(self.unit_scale):.3g} m, material={self.material}, "
                     f"diffuse={'yes' if self.diffuse is not None else 'no'}, "
-                    f"{'coherent' if self.coherent else 'incoherent'}]")
+                    f"{'coherent' if self.coherent else 'incoherent'}, depth_phase={self.depth_phase}]")
 
     ScratchDiffraction.__name__ = "ScratchDiffraction"
     return ScratchDiffraction

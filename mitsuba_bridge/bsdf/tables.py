@@ -1,8 +1,9 @@
-"""Scratch set → segment table sorted into a uniform UV grid (numpy only).
+"""Scratch set → segment table and a UV grid of references to it (numpy only).
 
 What the BSDF kernel reads (uploaded once per scratch set):
 
-``segments`` (N, 8) float32, one row per straight piece, sorted by grid cell::
+``segments`` (N, 8) float32, one row per straight piece, sorted by the grid cell
+  of its midpoint (neighbours in UV are neighbours in memory)::
 
     a_hi.u, a_hi.v, a_lo.u, a_lo.v, e.u, e.v, W [µm], ±D [µm]
 
@@ -11,31 +12,39 @@ What the BSDF kernel reads (uploaded once per scratch set):
   of the *difference*, not of the absolute coordinate (docs/model.md §1).
   ``e = b - a``.  A negative depth marks a V-groove (depth 0 never reaches the
   table).
-``cell_start`` (nu·nv + 1,) uint32: the pieces of cell ``i = v·nu + u`` are rows
-  ``cell_start[i]:cell_start[i + 1]``, so a row of cells ``u0..u1`` is one
-  contiguous range ``cell_start[v·nu + u0]:cell_start[v·nu + u1 + 1]``.
+``references`` (R,) uint32: piece indices, grouped by cell; a piece is listed
+  in **every** cell its centre line passes through (dilated by ``margin``
+  cells, so float32 rounding in the kernel never finds a point of a piece in a
+  cell that does not list it).
+``cell_start`` (nu·nv + 1,) uint32: the references of cell ``i = v·nu + u`` are
+  ``references[cell_start[i]:cell_start[i + 1]]``.
 
-Grid design ("loose" grid).  Every piece lives in exactly one cell, the one of
-its midpoint, and is at most one cell long; a shading point visits the cells
-within (window radius + half a cell) of it, row by row, each row one range.
-There is nothing to deduplicate and empty cells cost nothing.  The BSDF knows
-nothing of the mesh, so the window's size in UV (≈ 4σ in metres through the
-UV Jacobian) is unknown at load time; the automatic cell size is the largest
-power of two whose occupied cells hold at most ``TARGET_PER_CELL`` pieces on
-average (or where finer cells stop thinning them: clustered scratches), so a
-query tests a few dozen pieces at most when the window is smaller than a cell
-and little more than the pieces inside it otherwise.  The search looks at a
-crop of the UV box holding about ``SEARCH_PIECES`` pieces (the density, not
-the count, decides).  The size is bounded below so that pieces stay within a
-budget (four times the segment count, at most ``MAX_PIECES``) and cells within
-``MAX_CELLS_PER_AXIS`` per axis; a ``cell_size`` hint overrides it.  Pieces are also at most ``MAX_PIECE_UV`` long: a long piece would lose
-float32 accuracy of its position far from its stored start (1/64 UV keeps that
-error below 1 nm for objects up to a metre per UV unit).  Splitting changes
-nothing else: the finite-segment model is additive along a line.
+Why references (issue 12): a query must cost about what the pieces inside its
+coherence window cost.  A long piece (a CD chord, a grating groove) is listed
+in each cell it crosses, 4 bytes per cell, instead of being cut into pieces of
+32 bytes; cells can then be about the window's size even for the CD's 3.1
+million chords.  A query visits the cells of the window's bounding box and
+evaluates a piece only in the cell that holds the piece's point closest to the
+shading point (which lies inside the window when the piece counts), so a piece
+listed in several visited cells is evaluated once (:mod:`.lookup`).
 
-Memory: everything runs in chunks of ``CHUNK`` scratches or pieces into
-preallocated arrays, so the transient memory stays a small multiple of the
-final table (3.1 million CD scratches load in well under 2 GB).
+Cell size (power of two).  The window's size in UV (≈ 4σ in metres through the
+UV Jacobian) is only known per shading point, so the automatic size is the
+largest whose occupied cells hold at most ``TARGET_PER_CELL`` references on
+average, or where halving stops thinning them (parallel tracks closer than the
+window: finer cells would only list each track more often).  The search looks
+at a crop of the UV box holding about ``SEARCH_PIECES`` pieces.  Bounded below
+by a reference budget (``MAX_REFERENCES``: a set's references never need more
+than 4 bytes × budget) and ``MAX_CELLS`` cells in all; a ``cell_size`` hint
+overrides the density choice.  Pieces are at most ``MAX_PIECE_UV`` long: a
+long piece would lose float32 accuracy of its position far from its stored
+start (1/64 UV keeps that error below 1 nm for objects up to a metre per UV
+unit).  Splitting changes nothing else: the finite-segment model is additive
+along a line.
+
+Memory: everything runs in chunks into preallocated arrays, so the transient
+memory stays a small multiple of the final tables (the CD's 3.1 million chords
+load in well under 2 GB).
 """
 from __future__ import annotations
 
@@ -45,29 +54,33 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..scratch import Profile, ScratchSet, subdivide
+from .references import (CHUNK, aligned, cell_references, doubled_angles, empty_aligned, expand, normals,
+                         offsets_in_cell, sorted_references)
 
-__all__ = ["GridTables", "build_tables", "aligned", "TARGET_PER_CELL", "MAX_PIECE_UV"]
+__all__ = ["GridTables", "build_tables", "aligned", "cell_references", "TARGET_PER_CELL", "MAX_PIECE_UV"]
 
-#: Pieces per occupied cell aimed at by the automatic cell size.
-TARGET_PER_CELL = 4.0
+#: References per occupied cell aimed at by the automatic cell size.
+TARGET_PER_CELL = 8.0
+#: Tests per cell that the offset spread of nearly parallel pieces may add when cells are coarsened.
+SPREAD_TESTS = 4.0
 #: Longest piece, in UV units.
 MAX_PIECE_UV = 1.0 / 64.0
-#: Largest number of cells along one axis (keeps cell_start within 16 MB).
-MAX_CELLS_PER_AXIS = 2048
-#: Splitting may add at most this many pieces per piece (at least 2^20 in all) ...
-EXTRA_PIECES_PER_SEGMENT = 3.0
-#: ... up to this many pieces in all (32 bytes each in the kernel's table).
-MAX_PIECES = 16 * 2 ** 20
+#: Most cells in all (cell_start: 4 bytes each).
+MAX_CELLS = 1 << 22
+#: Most references in all (8 bytes each): bounds the cell size below for dense sets.
+MAX_REFERENCES = 1 << 26
 
 #: Metres (the scratch file's unit) to micrometres (the kernels' unit, docs/model.md §1.1).
 M_TO_UM = 1e6
 
 #: Pieces in the crop the automatic cell size is chosen on.
-SEARCH_PIECES = 1 << 19
-#: Scratches (or pieces) processed at a time.
-CHUNK = 1 << 18
+SEARCH_PIECES = 1 << 16
+#: ... and at most this many references in it (the search stops there).
+SEARCH_REFERENCES = 1 << 23
 #: Columns of the segment table.
 SEGMENT_COLUMNS = 8
+#: Dilation of every piece's cells, in cells (float32 rounding of the kernel's cell coordinates).
+CELL_DILATION = 1e-2
 
 
 @dataclass(frozen=True, eq=False)
@@ -75,55 +88,63 @@ class GridTables:
     """The kernel's view of one scratch set (see the module docstring)."""
 
     segments: np.ndarray
+    references: np.ndarray
+    offsets: np.ndarray  #: float32 per reference: lowest offset of its in-cell part along the cell normal (cells)
+    cell_frames: np.ndarray  #: (cells, 4) float32: cell normal n_u, n_v, largest offset spread, 0
     cell_start: np.ndarray
     origin: tuple[float, float]
     cell_size: float
     shape: tuple[int, int]  #: (nu, nv) cells along u and v
     piece_count: int  #: real pieces (the table is padded to at least one row)
-    margin: float  #: query padding in cells: half the longest piece plus rounding
+    margin: float  #: query padding and piece dilation, in cells
 
     @property
     def nbytes(self) -> int:
-        return self.segments.nbytes + self.cell_start.nbytes
+        return sum(x.nbytes for x in (self.segments, self.references, self.offsets, self.cell_frames,
+                                      self.cell_start))
 
 
 def build_tables(scratches: ScratchSet, cell_size: float = 0.0) -> GridTables:
-    """Segment table and grid of ``scratches``.
+    """Segment table, references and grid of ``scratches``.
 
     Parameters
     ----------
     cell_size:
         Grid cell size in UV units; 0 chooses it from the scratch density
-        (rounded up to a power of two either way).
+        (rounded up to a power of two either way, and never so small that the
+        grid exceeds ``MAX_CELLS`` cells or ``MAX_REFERENCES`` references).
     """
-    pieces = _pieces(scratches)
-    a, b = pieces[0], pieces[1]
+    a, b, width, depth = _pieces(scratches)
     if len(a) == 0:
         return _empty_tables()
 
     lo = np.minimum(a.min(axis=0), b.min(axis=0))
     hi = np.maximum(a.max(axis=0), b.max(axis=0))
-    extent = float((hi - lo).max())
-    floor = _power_of_two(max(extent / MAX_CELLS_PER_AXIS, _splitting_limit(a, b)))
+    floor = max(_cell_count_limit(lo, hi), _reference_limit(a, b))
     h = _power_of_two(cell_size) if cell_size > 0 else _automatic_cell_size(a, b, lo, hi, floor)
     h = max(h, floor)
     origin = np.floor(lo / h) * h
     shape = np.floor((hi - origin) / h).astype(np.int64) + 1
+    # float32 cell coordinates in the kernel: ~1e-7 relative of the UV coordinate, plus rounding
+    margin = CELL_DILATION + 1e-6 * float(np.abs(np.concatenate([lo, hi])).max()) / h
 
-    rows, cell_start = _sorted_rows(pieces, h, origin, shape)
-    del pieces, a, b
-    longest = float(np.abs(rows[:, 4:6]).max())
-    # float32 grid coordinates in the kernel are exact to ~2.5e-4 cells at 2048 cells
-    margin = 0.5 * longest / h + 2e-3 + 1e-6 * float(np.abs(np.concatenate([lo, hi])).max()) / h
-    return GridTables(segments=rows, cell_start=cell_start, origin=(float(origin[0]), float(origin[1])),
-                      cell_size=float(h), shape=(int(shape[0]), int(shape[1])), piece_count=len(rows),
-                      margin=margin)
+    order = np.argsort(_cells(0.5 * (a + b), h, origin, shape), kind="stable")
+    a, b, width, depth = a[order], b[order], width[order], depth[order]
+    segments = _segment_rows(a, b, width, depth)
+    del width, depth, order
+    references, offsets, frames, cell_start = sorted_references(a, b, h, origin, shape, margin)
+    return GridTables(segments=segments, references=references, offsets=offsets, cell_frames=frames,
+                      cell_start=cell_start,
+                      origin=(float(origin[0]), float(origin[1])), cell_size=float(h),
+                      shape=(int(shape[0]), int(shape[1])), piece_count=len(segments), margin=margin)
 
 
 # --------------------------------------------------------------- internals
 def _empty_tables() -> GridTables:
-    # One dummy row: gathers from zero-length arrays raise even when masked.
+    # One dummy row each: gathers from zero-length arrays raise even when masked.
     return GridTables(segments=np.zeros((1, SEGMENT_COLUMNS), dtype=np.float32),
+                      references=np.zeros(1, dtype=np.uint32), offsets=np.zeros(1, dtype=np.float32),
+                      cell_frames=np.array([[0.0, 1.0, 0.0, 0.0]], dtype=np.float32),
                       cell_start=np.zeros(2, dtype=np.uint32), origin=(0.0, 0.0), cell_size=1.0,
                       shape=(1, 1), piece_count=0, margin=0.0)
 
@@ -158,37 +179,53 @@ def _power_of_two(value: float) -> float:
     return 2.0 ** math.ceil(math.log2(max(value, 2.0 ** -60)))
 
 
-def _spans(a, b) -> np.ndarray:
-    """Per-axis extent of each piece: splitting to cell size h makes ceil(span / h) pieces."""
-    return np.abs(b - a).max(axis=1)
+def _cell_count_limit(lo, hi) -> float:
+    """Smallest power-of-two cell size with at most MAX_CELLS cells over the box [lo, hi]."""
+    extent = np.maximum(hi - lo, 0.0)
+    h = _power_of_two(max(math.sqrt(float(extent[0] * extent[1]) / MAX_CELLS), float(extent.max()) / MAX_CELLS))
+    while float(np.prod(np.floor(extent / h) + 2)) > MAX_CELLS:
+        h *= 2.0
+    return h
 
 
-def _splitting_limit(a, b) -> float:
-    """Smallest cell size for which splitting pieces to one cell stays within the piece budget.
+def _reference_limit(a, b) -> float:
+    """Smallest cell size for which the references stay within MAX_REFERENCES.
 
-    The budget: ``EXTRA_PIECES_PER_SEGMENT`` more pieces per piece, but no more
-    than ``MAX_PIECES`` in all (and never less than 2^20 extra pieces).
+    A piece crossing ``|Δu|/h + |Δv|/h`` cell boundaries is listed in at most
+    that many cells plus one (plus the dilation, a few per cent).
     """
-    count = len(a)
-    budget = max(min((1.0 + EXTRA_PIECES_PER_SEGMENT) * count, MAX_PIECES), count + 2.0 ** 20)
-    return float(_spans(a, b).sum()) / (budget - count)
+    spans = float(np.abs(b - a).sum())
+    room = MAX_REFERENCES / 1.1 - 2.0 * len(a)
+    return _power_of_two(spans / room) if room > 0 else 2.0 ** 60
 
 
 def _automatic_cell_size(a, b, lo, hi, floor) -> float:
-    """Largest power of two with at most TARGET_PER_CELL pieces per occupied cell on average.
+    """Largest power of two with at most TARGET_PER_CELL references per occupied cell on average.
 
     Halving stops early where it no longer thins the cells (by less than a
-    quarter): the scratches are then clustered below that scale (parallel
-    tracks, a grating), and smaller cells would only add cells to visit.
+    quarter) once cells are no longer than the typical piece: the scratches
+    are then clustered below that scale (parallel tracks, a grating), and
+    smaller cells would only list them more often.  Larger cells keep
+    halving: they list several collinear pieces of one scratch, or a few
+    crowded coarse cells hold a ring of short pieces.
     """
     a, b, lo, hi = _search_crop(a, b, lo, hi)
-    h = _power_of_two(float((hi - lo).max()))
-    density = _pieces_per_occupied_cell(a, b, lo, h)
-    while h > floor and density > TARGET_PER_CELL:
-        finer = _pieces_per_occupied_cell(a, b, lo, 0.5 * h)
-        if finer > 0.75 * density:
+    spans = float(np.abs(b - a).sum())
+    typical_piece = float(np.median(np.abs(b - a).max(axis=1)))
+    # never longer than a typical piece: a cell would list collinear pieces of one scratch, which
+    # share their offset and are all scanned
+    h = min(_power_of_two(float((hi - lo).max())), 0.5 * _power_of_two(typical_piece))
+    density = _references_per_occupied_cell(a, b, lo, hi, h)
+    while h > floor and density > TARGET_PER_CELL and spans / (0.5 * h) < SEARCH_REFERENCES:
+        finer = _references_per_occupied_cell(a, b, lo, hi, 0.5 * h)
+        if finer > 0.75 * density and h <= typical_piece:
             break
         h, density = 0.5 * h, finer
+    # Coarser cells cost little where the pieces of a cell are nearly parallel (a query bisects
+    # them by offset): double while the offset spread adds at most SPREAD_TESTS tests per cell on
+    # average, and no cell grows longer than a typical piece (collinear pieces share their offset).
+    while 2.0 * h <= typical_piece and _spread_tests(a, b, lo, hi, 2.0 * h) <= SPREAD_TESTS:
+        h *= 2.0
     return h
 
 
@@ -197,105 +234,69 @@ def _search_crop(a, b, lo, hi):
     if len(a) <= SEARCH_PIECES:
         return a, b, lo, hi
     midpoint = 0.5 * (a + b)
-    centre = np.median(midpoint[:: max(1, len(a) // 4096)], axis=0)
+    sample = midpoint[:: max(1, len(a) // 4096)]
+    median = np.median(sample, axis=0)  # may lie in a hole (a disc): take the nearest piece
+    centre = sample[np.argmin(np.abs(sample - median).sum(axis=1))]
     half = 0.5 * float((hi - lo).max()) * math.sqrt(SEARCH_PIECES / len(a))
     for _ in range(40):  # widen until the crop holds enough pieces (clustered sets)
         inside = np.all(np.abs(midpoint - centre) <= half, axis=1)
         if np.count_nonzero(inside) >= SEARCH_PIECES // 2 or half > float((hi - lo).max()):
             break
         half *= 1.5
-    return a[inside], b[inside], np.maximum(lo, centre - half), np.minimum(hi, centre + half)
+    a, b = a[inside], b[inside]
+    return a, b, np.minimum(a.min(axis=0), b.min(axis=0)), np.maximum(a.max(axis=0), b.max(axis=0))
 
 
-def _pieces_per_occupied_cell(a, b, lo, h) -> float:
-    a, b = _split((a, b), h)
-    cells = np.floor((0.5 * (a + b) - lo) / h).astype(np.int64)
-    cells -= cells.min(axis=0)
-    shape = cells.max(axis=0) + 1
-    occupied = np.zeros(int(shape[0] * shape[1]), dtype=bool)
-    occupied[cells[:, 1] * shape[0] + cells[:, 0]] = True
-    return len(a) / np.count_nonzero(occupied)
+def _references_per_occupied_cell(a, b, lo, hi, h) -> float:
+    origin = np.floor(lo / h) * h
+    shape = np.floor((hi - origin) / h).astype(np.int64) + 1
+    cells, _ = cell_references(a, b, h, origin, shape, 0.0)
+    return len(cells) / len(np.unique(cells))
+
+
+def _spread_tests(a, b, lo, hi, h) -> float:
+    """Mean over occupied cells of (offset spread × references): what the spread adds to a scan."""
+    origin = np.floor(lo / h) * h
+    shape = np.floor((hi - origin) / h).astype(np.int64) + 1
+    cells, piece = cell_references(a, b, h, origin, shape, 0.0)
+    occupied, cells = np.unique(cells, return_inverse=True)
+    normal = normals(doubled_angles(a, b, cells, piece, len(occupied)))
+    # offsets are measured in cells of the real grid: restore the cell numbers for the clipping
+    full = np.zeros((int(shape[0] * shape[1]), 2))
+    full[occupied] = normal
+    _, extent = offsets_in_cell((a - origin) / h, (b - origin) / h, occupied[cells], piece, full, shape, 0.0)
+    spread = np.zeros(len(occupied))
+    np.maximum.at(spread, cells, extent)
+    return float(np.mean(spread * np.bincount(cells)))
 
 
 def _split(arrays, max_length):
     """Split pieces ``(a, b, ...)`` whose per-axis span exceeds ``max_length`` into equal collinear pieces."""
     a, b = arrays[0], arrays[1]
-    parts = np.maximum(1, np.ceil(_spans(a, b) / max_length)).astype(np.int64)
+    parts = np.maximum(1, np.ceil(np.abs(b - a).max(axis=1) / max_length)).astype(np.int64)
     if np.all(parts == 1):
         return arrays
-    source = np.repeat(np.arange(len(a)), parts)
-    k = np.arange(len(source)) - np.repeat(np.cumsum(parts) - parts, parts)
+    source, k = expand(np.zeros(len(a), np.int64), parts)
     step = (b - a)[source] / parts[source, None]
     new_a = a[source] + k[:, None] * step
     new_b = np.where((k + 1 == parts[source])[:, None], b[source], new_a + step)  # exact far ends
     return (new_a, new_b) + tuple(x[source] for x in arrays[2:])
 
 
-def _cells(a, b, h, origin, shape):
-    """Grid cell (row-major index) of each piece's midpoint."""
-    uv = np.clip(np.floor((0.5 * (a + b) - origin) / h).astype(np.int64), 0, shape - 1)
+def _cells(points, h, origin, shape):
+    """Grid cell (row-major index) of each point."""
+    uv = np.clip(np.floor((points - origin) / h).astype(np.int64), 0, shape - 1)
     return uv[:, 1] * shape[0] + uv[:, 0]
 
 
-def _sorted_rows(pieces, h, origin, shape):
-    """Kernel rows of the pieces split to one cell, sorted by cell, and ``cell_start``.
-
-    A counting sort in two chunked passes: the first counts the pieces per
-    cell, the second splits again and writes every row straight to its place,
-    so only the final table is ever held in full.
-    """
-    cell_count = int(shape[0] * shape[1])
-    counts = np.zeros(cell_count, dtype=np.int64)
-    for chunk in _split_chunks(pieces, h):
-        counts += np.bincount(_cells(chunk[0], chunk[1], h, origin, shape), minlength=cell_count)
-    cell_start = _empty_aligned(cell_count + 1, np.uint32)
-    cell_start[0] = 0
-    np.cumsum(counts, out=cell_start[1:])
-    cursor = cell_start[:-1].astype(np.int64)
-    rows = _empty_aligned((int(cell_start[-1]), SEGMENT_COLUMNS), np.float32)
-    for ca, cb, width, depth in _split_chunks(pieces, h):
-        cell = _cells(ca, cb, h, origin, shape)
-        order = np.argsort(cell, kind="stable")
-        cell = cell[order]
-        first = np.searchsorted(cell, cell, side="left")  # start of each piece's run within the chunk
-        destination = cursor[cell] + (np.arange(len(cell)) - first)
-        cursor += np.bincount(cell, minlength=cell_count)
-        ca, cb = ca[order], cb[order]
-        a_hi = ca.astype(np.float32)
-        rows[destination, 0:2] = a_hi
-        rows[destination, 2:4] = ca - a_hi
-        rows[destination, 4:6] = cb - ca
-        rows[destination, 6] = width[order]
-        rows[destination, 7] = depth[order]
-    return rows, cell_start
-
-
-def _split_chunks(pieces, h):
-    for start in range(0, len(pieces[0]), CHUNK):
-        yield _split(tuple(x[start:start + CHUNK] for x in pieces), h)
-
-
-ALIGNMENT = 64
-
-
-def _empty_aligned(shape, dtype) -> np.ndarray:
-    """``np.empty`` starting on a 64-byte boundary (see :func:`aligned`)."""
-    dtype = np.dtype(dtype)
-    size = int(np.prod(shape)) * dtype.itemsize
-    raw = np.empty(size + ALIGNMENT, dtype=np.uint8)
-    offset = (-raw.ctypes.data) % ALIGNMENT
-    return raw[offset:offset + size].view(dtype).reshape(shape)
-
-
-def aligned(array: np.ndarray) -> np.ndarray:
-    """``array`` as a contiguous array on a 64-byte boundary (the array itself when it already is).
-
-    Dr.Jit's CPU backend maps numpy memory without copying, and emits different
-    (packet or element) gathers depending on its alignment.
-    """
-    array = np.ascontiguousarray(array)
-    if array.ctypes.data % ALIGNMENT == 0:
-        return array
-    result = _empty_aligned(array.shape, array.dtype)
-    result[...] = array
-    return result
+def _segment_rows(a, b, width, depth):
+    rows = empty_aligned((len(a), SEGMENT_COLUMNS), np.float32)
+    for start in range(0, len(a), CHUNK):
+        part = slice(start, start + CHUNK)
+        a_hi = a[part].astype(np.float32)
+        rows[part, 0:2] = a_hi
+        rows[part, 2:4] = a[part] - a_hi
+        rows[part, 4:6] = b[part] - a[part]
+        rows[part, 6] = width[part]
+        rows[part, 7] = depth[part]
+    return rows

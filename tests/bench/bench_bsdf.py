@@ -8,13 +8,22 @@ this one) are the meaningful references.  All calls run on 2^20 lanes in the
 same process and variant (llvm_ad_spectral); each figure is the best of
 ``--repeat`` runs after a warm-up that compiles the kernels.
 
-Run: ``.venv/bin/python tests/bench/bench_bsdf.py``.
+Dense sets (issue 12): ``--dense`` adds the time per query on the paper's CD
+(3.1 million chords on tracks of pitch 1.6 µm, built as in
+``bench_bsdf_memory.py``) and on the Fig. 9 grating (1 600 grooves of 7 cm at a
+2.5 µm pitch), at shading points spread over the tracks/bands in every
+orientation, as wall time per lane (all cores) and as a ratio to
+``roughconductor.eval`` measured in the same run (the machine is shared).
+
+Run: ``.venv/bin/python tests/bench/bench_bsdf.py [--dense]``.
 """
 from __future__ import annotations
 
 import argparse
 import os
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -24,6 +33,8 @@ def main():
     parser.add_argument("--lanes", type=int, default=1 << 20)
     parser.add_argument("--repeat", type=int, default=5)
     parser.add_argument("--segments", type=int, nargs="*", default=[0, 1, 4, 16])
+    parser.add_argument("--dense", action="store_true", help="also time queries on the CD and the grating")
+    parser.add_argument("--dense-lanes", type=int, default=1 << 17)
     args = parser.parse_args()
 
     import drjit as dr
@@ -97,6 +108,9 @@ def main():
         print(f"{'scratch_diffraction, ' + str(count) + ' segments':34s} "
               + " ".join(f"{v:12.3e}" for v in results[count]))
 
+    if args.dense:
+        dense_sets(args, rng)
+
     conductor = references["conductor (Al, delta)"]
     rough = references["roughconductor (Al, GGX 0.1)"]
     if 1 in results:
@@ -112,6 +126,74 @@ def main():
         per = [(1 / results[c][0] - 1 / results.get(0, results[c])[0]) / c * 1e9 for c in counts]
         print("eval time per segment [ns per lane]: "
               + ", ".join(f"{c}: {p:.1f}" for c, p in zip(counts, per)) + " (linear: roughly constant)")
+
+
+def dense_sets(args, rng):
+    """Time per ``eval`` query on the CD and the grating; ratio to roughconductor.eval of this run."""
+    import drjit as dr
+    import mitsuba as mi
+
+    from scratch_iridescence.mitsuba_bridge import bsdf as scratch_bsdf
+    from scratch_iridescence.mitsuba_bridge.scratch import ScratchSet
+
+    sys.path.insert(0, str(Path(__file__).parent))
+    from bench_bsdf_memory import DISC_M, cd_scratches
+
+    n = args.dense_lanes
+
+    def interaction(u, v):
+        si = dr.zeros(mi.SurfaceInteraction3f, n)
+        si.uv = mi.Point2f(mi.Float(u), mi.Float(v))
+        si.dp_du, si.dp_dv = mi.Vector3f(1, 0, 0), mi.Vector3f(0, 1, 0)
+        si.n = mi.Normal3f(0, 0, 1)
+        si.sh_frame = mi.Frame3f(mi.Vector3f(0, 0, 1))
+        si.wi = mi.warp.square_to_cosine_hemisphere(mi.Point2f(mi.Float(rng.random(n)), mi.Float(rng.random(n))))
+        si.wavelengths = mi.Spectrum(*(mi.Float(rng.uniform(360, 830, n)) for _ in range(4)))
+        return si
+
+    rough = mi.load_dict({"type": "roughconductor", "material": "Al", "alpha": 0.1})
+
+    def time_eval(bsdf, si):
+        """Best time per lane of ``bsdf.eval`` and of ``roughconductor.eval``, measured alternately."""
+        wo = mi.warp.square_to_cosine_hemisphere(mi.Point2f(mi.Float(rng.random(n)), mi.Float(rng.random(n))))
+        dr.eval(si, wo)
+        ctx = mi.BSDFContext()
+        best = [float("inf"), float("inf")]
+        for i in range(args.repeat + 1):
+            for k, b in enumerate((bsdf, rough)):
+                start = time.perf_counter()
+                dr.eval(b.eval(ctx, si, wo))
+                dr.sync_thread()
+                if i:
+                    best[k] = min(best[k], time.perf_counter() - start)
+        return best[0] / n, best[1] / n
+
+    # the CD: points on the program area, every track orientation
+    radius = rng.uniform(23e-3, 57e-3, n) / DISC_M
+    angle = rng.uniform(0, 2 * np.pi, n)
+    start = time.perf_counter()
+    cd = mi.load_dict(scratch_bsdf.plugin_dict(cd_scratches(), unit_scale=DISC_M))
+    print(f"\nCD: {cd} (load {time.perf_counter() - start:.1f} s)")
+    cd_query, cd_rough = time_eval(cd, interaction(0.5 + radius * np.cos(angle), 0.5 + radius * np.sin(angle)))
+    del cd
+
+    # the Fig. 9 grating: four bands of 400 grooves, pitch 2.5 µm, 7 cm long, on a 10 cm plate (UV = plate)
+    plate_m, pitch_m = 0.10, 2.5e-6
+    bands = np.array([0.0, 0.005, 0.010, 0.015])
+    y = (bands[:, None] + pitch_m * np.arange(400)[None, :]).ravel() / plate_m + 0.4
+    grooves = [np.array([[0.15, yy], [0.85, yy]]) for yy in y]
+    grating = mi.load_dict(scratch_bsdf.plugin_dict(
+        ScratchSet.from_polylines(grooves, width=1e-6, depth=1e-6), unit_scale=plate_m))
+    print(f"grating: {grating}")
+    band = rng.integers(0, 4, n)
+    v = 0.4 + (bands[band] + rng.uniform(0, 400 * pitch_m, n)) / plate_m
+    grating_query, grating_rough = time_eval(grating, interaction(rng.uniform(0.2, 0.8, n), v))
+
+    print(f"time per eval query (wall per lane, {os.cpu_count()} cores, {n} lanes, best of {args.repeat}; "
+          "roughconductor.eval on the same lanes, measured alternately):")
+    for name, query, reference in (("CD", cd_query, cd_rough), ("grating", grating_query, grating_rough)):
+        print(f"  {name:8s} {query * 1e9:8.0f} ns  = {query / reference:6.1f} x roughconductor.eval "
+              f"({reference * 1e9:.1f} ns)")
 
 
 if __name__ == "__main__":

@@ -153,6 +153,40 @@ def test05b_deep_grooves_gain_energy_in_the_scalar_model_and_the_plugin_adds_non
     assert got.sum() * cell == pytest.approx(expected.sum() * cell, rel=0.01)
 
 
+DEEP = {f"{'V' if profile else 'rect'} W{w:g} D{d:g}": (w, d, profile)
+        for profile in (ref.RECT, ref.TRI) for w in (0.2, 1.0, 6.0, 20.0) for d in (1.0, 6.0, 10.0)}
+
+
+def deep_albedo(name, theta, depth_phase):
+    """Albedo of one long scratch through the window (σ = 2 µm, perfect mirror) at 450–750 nm.
+
+    Midpoint rule on the disc of direction cosines with a quarter of the mirror lobe's width as
+    step: the flat mirror integrates to 1 within 1 % at the same step (test03's quadrature).
+    """
+    width, depth, profile = DEEP[name]
+    bsdf = shading.load_bsdf([ref.Scratch((-40, 0.3), (40, 0.3), width, depth, profile)], sigma_um=2.0,
+                             depth_phase=depth_phase)
+    return albedo(bsdf, shading.direction(theta, 70.0), 2.0, wavelengths_nm=(450.0, 550.0, 650.0, 750.0))
+
+
+@pytest.mark.parametrize("name, theta", [("rect W6 D6", 40.0), ("rect W1 D1", 80.0)])
+def test05c_incidence_depth_phase_keeps_deep_grooves_within_their_energy(name, theta):
+    """depth_phase="incidence": a screen fixed by ω_i, so Parseval bounds the albedo for any depth,
+    where the Kirchhoff phase gains up to 40 % (docs/bsdf.md, Energy)."""
+    assert np.all(deep_albedo(name, theta, "incidence") <= 1.01)
+    if theta < 60.0:
+        assert np.any(deep_albedo(name, theta, "kirchhoff") > 1.1)  # what it fixes
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", list(DEEP))
+def test05d_incidence_depth_phase_conserves_energy_for_all_deep_sets(name):
+    """Depths 1–10 µm, widths 0.2–20 µm, both profiles, incidence 0–80°: albedo ≤ 1.01."""
+    for theta in (0.0, 40.0, 80.0):
+        a = deep_albedo(name, theta, "incidence")
+        assert np.all(a <= 1.01), (theta, a)
+
+
 def test06_reciprocity():
     rng = np.random.default_rng(6)
     scratches = [ref.Scratch((-20, y), (20, y), 0.6, 0.15) for y in np.arange(-4.0, 4.01, 1.2)]

@@ -64,7 +64,7 @@ def test02_registration_is_idempotent_and_importing_has_no_side_effects():
 def test03_manual_documents_every_parameter():
     assert plugin_class().__doc__ == MANUAL
     for name in ("filename", "coherence_diameter", "unit_scale", "material", "eta, k", "diffuse_reflectance",
-                 "coherent", "cell_size", "scratch_uv", "load_dict", "30e-6", "metres"):
+                 "coherent", "cell_size", "depth_phase", "scratch_uv", "load_dict", "30e-6", "metres"):
         assert name in MANUAL, name
 
 
@@ -98,6 +98,7 @@ def test05_missing_and_malformed_files_name_file_and_field(plate, tmp_path):
     ({"coherence_diameter": -1e-6}, "'coherence_diameter' must be a positive length"),
     ({"unit_scale": 0.0}, "'unit_scale' must be a positive length"),
     ({"filename": "a.npz", "scratch_uv": mi.TensorXf64(np.zeros((1, 0, 2)))}, "either 'filename' or"),
+    ({"depth_phase": "fresnel"}, "'depth_phase' must be one of kirchhoff, incidence, got 'fresnel'"),
 ])
 def test06_bad_parameters_are_refused_at_load(extra, message):
     with pytest.raises(RuntimeError, match=message):
