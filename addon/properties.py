@@ -16,6 +16,12 @@ from ..mitsuba_bridge.bsdf.parameters import BASE_MATERIALS, DEFAULT_COHERENCE_D
 __all__ = ["SCRATCH_PG_object"]
 
 
+def _tag_object(settings, context):
+    # Properties defined in Python tag no depsgraph update: tag the object so that the
+    # Rendered viewport (view_update) hears of the new BSDF settings.
+    settings.id_data.update_tag(refresh={"OBJECT"})
+
+
 class SCRATCH_PG_object(bpy.types.PropertyGroup):
     """Scratch rendering and display settings of one object."""
 
@@ -25,6 +31,7 @@ class SCRATCH_PG_object(bpy.types.PropertyGroup):
         description="Metal under the scratches (spectral conductor data from Mitsuba)",
         items=[(code, label, description) for code, label, description in BASE_MATERIALS],
         default="Al",
+        update=_tag_object,
     )
     coherence_diameter: FloatProperty(
         name="Coherence Diameter",
@@ -32,17 +39,20 @@ class SCRATCH_PG_object(bpy.types.PropertyGroup):
                     "about 30-100 µm. Larger values give sharper diffraction lines and cost more",
         subtype="DISTANCE", unit="LENGTH", default=DEFAULT_COHERENCE_DIAMETER_M,
         min=1e-6, soft_min=5e-6, soft_max=200e-6, precision=1, step=0.1,
+        update=_tag_object,
     )
     coherent: BoolProperty(
         name="Coherent",
         description="Add the waves of all scratches in a coherence area (interference, grating "
                     "colours); off: add their intensities, as the paper's comparison mode",
         default=True,
+        update=_tag_object,
     )
     diffuse_reflectance: FloatVectorProperty(
         name="Diffuse Base",
         description="Optional incoherent Lambertian base under the scratches (black: none)",
         subtype="COLOR", size=3, min=0.0, max=1.0, default=(0.0, 0.0, 0.0),
+        update=_tag_object,
     )
 
     # ---- viewport overlay ----

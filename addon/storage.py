@@ -93,6 +93,14 @@ def write_scratches(obj, scratches: ScratchSet) -> None:
     token = secrets.token_hex(8)
     obj[TOKEN_KEY] = token
     _decoded[token] = scratches
+    _tag(obj)
+
+
+def _tag(obj) -> None:
+    # ID properties written from Python tag nothing: without this the depsgraph (and with it the
+    # Rendered viewport's view_update) would not hear of the edit.  OBJECT (a transform-level
+    # recalc) is the cheapest tag that reaches the engine; the mesh is not re-evaluated.
+    obj.update_tag(refresh={"OBJECT"})
 
 
 def clear_scratches(obj) -> None:
@@ -100,3 +108,4 @@ def clear_scratches(obj) -> None:
     for key in (DATA_KEY, TOKEN_KEY, SUMMARY_KEY):
         if key in obj:
             del obj[key]
+    _tag(obj)
