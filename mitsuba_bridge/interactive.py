@@ -39,6 +39,7 @@ import time
 import numpy as np
 
 from . import builder
+from .freezing import FrozenRender
 from .render import Progress, pass_seed
 from .scene import Camera, Film, RenderSettings, SceneDescription, ScratchedMetal, Shape
 
@@ -125,10 +126,12 @@ class Session:
         Samples per pixel after which the session stops rendering (default ``settings.spp``).
     start_divisor : int
         The first pass after each change renders at 1/start_divisor resolution (1: no preview).
+    freeze : bool
+        Replay recorded passes (``dr.freeze``, see :mod:`.freezing`) instead of tracing each one again.
     """
 
     def __init__(self, description: SceneDescription, settings: RenderSettings, *, samples: int | None = None,
-                 start_divisor: int = 4):
+                 start_divisor: int = 4, freeze: bool = True):
         if start_divisor < 1:
             raise ValueError(f"start_divisor must be at least 1, got {start_divisor}")
         self.settings = settings
@@ -137,6 +140,7 @@ class Session:
             raise ValueError("samples must be at least 1")
         self.start_divisor = int(start_divisor)
         self._counter = KernelCounter()
+        self._render = FrozenRender(freeze)
         self._stats = {"passes": 0, "rebuilds": 0, "updates": 0, "last_update": "build",
                        "last_pass_seconds": 0.0, "last_update_seconds": 0.0}
         self._closed = False
@@ -156,6 +160,7 @@ class Session:
         self._shape_keys = [key for key in scene_dict if key.startswith("shape-")]
         self._scene = mi.load_dict(scene_dict)
         self._params = mi.traverse(self._scene)
+        self._render.reset()
         # The loaded sensors hold their parameters as literals; written once as opaque values now, the
         # first kernels already take them as inputs and no camera move compiles anything.
         self._assign(self._camera_values(description.camera))
@@ -173,7 +178,10 @@ class Session:
         self._started = time.perf_counter()
         self._finished = False
 
-    def _updated(self, kind: str, began: float) -> None:
+    def _updated(self, kind: str, began: float, *, replayable: bool = False) -> None:
+        # Frozen passes see new array values only: anything else records them again (one traced pass).
+        if not replayable:
+            self._render.reset()
         self._stats["updates"] += 1
         self._stats["last_update"] = kind
         self._stats["last_update_seconds"] = time.perf_counter() - began
@@ -217,8 +225,9 @@ class Session:
         if camera.projection != previous.projection:
             self._rebuild(self.description, "projection")
             return
-        self._assign(self._camera_values(camera))
-        self._updated("camera", began)
+        values = self._camera_values(camera)
+        self._assign(values)
+        self._updated("camera", began, replayable=not any(key.endswith("_clip") for key in values))
 
     def _camera_values(self, camera: Camera) -> dict:
         import mitsuba as mi
@@ -229,7 +238,7 @@ class Session:
             values[prefix + "to_world"] = mi.AffineTransform4f(sensor["to_world"].matrix)
             # Clipping distances are scalars of the sensor (kernel literals): written only when they change.
             for name in ("near_clip", "far_clip"):
-                if self._params[prefix + name] != sensor[name]:
+                if np.float32(self._params[prefix + name]) != np.float32(sensor[name]):  # stored as float32
                     values[prefix + name] = sensor[name]
             if camera.projection == "perspective":
                 values[prefix + "x_fov"] = mi.Float(sensor["fov"])
@@ -282,7 +291,8 @@ class Session:
             self._updated("scratches", began)
             return
         update_scratches(self._params, scratches, prefix=prefix)
-        self._updated("scratches", began)
+        # The tables are arrays the recording takes as inputs (a new size records again by itself).
+        self._updated("scratches", began, replayable=True)
 
     def set_material(self, material_key: str, material) -> None:
         """Replace a material: its BSDF's parameters in place when the kind stays, else a rebuild."""
@@ -391,12 +401,10 @@ class Session:
         return self._latest
 
     def _render_pass(self) -> None:
-        import mitsuba as mi
-
         preview, spp = plan_pass(self._index, self._spp_done, self.samples, self.start_divisor)
         began = time.perf_counter()
-        image = np.asarray(mi.render(self._scene, sensor=1 if preview else 0, spp=spp,
-                                     seed=pass_seed(self.settings.seed, self._index)), dtype=np.float32)
+        image = np.asarray(self._render(self._scene, 1 if preview else 0, spp,
+                                        pass_seed(self.settings.seed, self._index)), dtype=np.float32)
         self._counter.poll()
         self._stats["passes"] += 1
         self._stats["last_pass_seconds"] = time.perf_counter() - began
@@ -417,7 +425,7 @@ class Session:
         """``kernels_compiled`` (since the session began), ``passes``, ``rebuilds``, ``updates``,
         ``last_update`` (kind), ``last_update_seconds``, ``last_pass_seconds``, ``spp_done``, ``samples``."""
         return {**self._stats, "kernels_compiled": self._counter.compiled, "spp_done": self._spp_done,
-                "samples": self.samples}
+                "samples": self.samples, "frozen": self._render.enabled, "freeze_failure": self._render.failure}
 
     def close(self) -> None:
         """Release the scene and restore Dr.Jit's kernel-history flag; the session cannot render afterwards."""

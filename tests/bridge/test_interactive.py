@@ -155,3 +155,17 @@ def test10_progressive_image_converges_to_the_final_render_at_equal_spp(variant)
     standard_error = difference.std() / np.sqrt(difference.size)
     assert abs(difference.mean()) < 5.0 * standard_error  # a 5-sigma margin: fails by chance < 1e-6
     assert abs(viewport.mean() / final.mean() - 1.0) < 0.02
+
+
+def test11_frozen_passes_replay_camera_moves_exactly_as_traced_passes_render_them(variant):
+    """Orbiting replays the recording (no re-tracing); its image is bit for bit the unfrozen session's."""
+    images = {}
+    for freeze in (True, False):
+        session = interactive.Session(plate_scene(), SETTINGS, samples=SAMPLES, freeze=freeze)
+        finish(session)
+        for step in range(1, 3):
+            session.set_camera(S.Camera(camera_at((0.15 * step, 0.1, 3.0)), fov_x_deg=55 - step))
+            images[freeze] = finish(session).image
+        assert session.stats["frozen"] is freeze and session.stats["freeze_failure"] is None
+        session.close()
+    assert np.array_equal(images[True], images[False])
