@@ -128,5 +128,14 @@ class FrozenRender:
                 return self._functions[key](scene, dr.opaque(mi.UInt32, seed), handles)
             except RuntimeError as error:
                 self.enabled, self._functions = False, {}
-                self.failure = f"{type(error).__name__}: {error}"
+                self.failure = _chain(error)
         return mi.render(scene, sensor=sensor, spp=spp, seed=seed)
+
+
+def _chain(error: BaseException) -> str:
+    """The messages of ``error`` and its causes (Dr.Jit puts the reason in the innermost one)."""
+    messages = []
+    while error is not None:
+        messages.append(str(error))
+        error = error.__cause__
+    return " <- ".join(reversed(messages))

@@ -291,8 +291,9 @@ class Session:
             self._updated("scratches", began)
             return
         update_scratches(self._params, scratches, prefix=prefix)
-        # The tables are arrays the recording takes as inputs (a new size records again by itself).
-        self._updated("scratches", began, replayable=True)
+        # A replay would see the new tables (they are traversed inputs), but a new table size records
+        # the pass again and Dr.Jit would keep every old recording: drop them instead.
+        self._updated("scratches", began)
 
     def set_material(self, material_key: str, material) -> None:
         """Replace a material: its BSDF's parameters in place when the kind stays, else a rebuild."""
