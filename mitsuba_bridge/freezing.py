@@ -106,11 +106,17 @@ class FrozenRender:
     def __init__(self, enabled: bool = True):
         self.enabled = enabled
         self.failure: str | None = None
-        self.recordings = 0
+        self._recorded = 0  #: recordings of functions already dropped
         self._functions: dict = {}
+
+    @property
+    def recordings(self) -> int:
+        """Passes recorded so far (each costs about one traced pass; replays cost almost nothing)."""
+        return self._recorded + sum(function.n_recordings for function in self._functions.values())
 
     def reset(self) -> None:
         """Forget the recordings (after updates that replays would not see)."""
+        self._recorded = self.recordings
         self._functions.clear()
 
     def __call__(self, scene, sensor: int, spp: int, seed: int):
@@ -123,7 +129,6 @@ class FrozenRender:
                 key = (sensor, spp)
                 if key not in self._functions:
                     self._functions[key] = _freeze(sensor, spp)
-                    self.recordings += 1
                 # An opaque seed: a literal one would be recorded again as soon as it changes.
                 return self._functions[key](scene, dr.opaque(mi.UInt32, seed), handles)
             except RuntimeError as error:

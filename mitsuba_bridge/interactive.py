@@ -291,8 +291,8 @@ class Session:
             self._updated("scratches", began)
             return
         update_scratches(self._params, scratches, prefix=prefix)
-        # A replay would see the new tables (they are traversed inputs), but a new table size records
-        # the pass again and Dr.Jit would keep every old recording: drop them instead.
+        # Passes are recorded again (about one traced pass): replaying recordings across new scratch
+        # tables crashed Dr.Jit 1.5 (a segmentation fault) even where the table sizes stayed the same.
         self._updated("scratches", began)
 
     def set_material(self, material_key: str, material) -> None:
@@ -426,7 +426,8 @@ class Session:
         """``kernels_compiled`` (since the session began), ``passes``, ``rebuilds``, ``updates``,
         ``last_update`` (kind), ``last_update_seconds``, ``last_pass_seconds``, ``spp_done``, ``samples``."""
         return {**self._stats, "kernels_compiled": self._counter.compiled, "spp_done": self._spp_done,
-                "samples": self.samples, "frozen": self._render.enabled, "freeze_failure": self._render.failure}
+                "samples": self.samples, "frozen": self._render.enabled, "freeze_failure": self._render.failure,
+                "recordings": self._render.recordings}
 
     def close(self) -> None:
         """Release the scene and restore Dr.Jit's kernel-history flag; the session cannot render afterwards."""

@@ -37,10 +37,14 @@ def lit_scene(variant):
 
 def test03_frozen_passes_equal_traced_ones_and_replay_new_seeds(lit_scene):
     frozen = freezing.FrozenRender()
-    for seed in (3, 4, 5):
+    recordings = []
+    for seed in (3, 4, 5, 6):
         image = np.asarray(frozen(lit_scene, 0, 1, seed))
         assert np.array_equal(image, np.asarray(mi.render(lit_scene, spp=1, seed=seed)))
-    assert frozen.enabled and frozen.failure is None and frozen.recordings == 1
+        recordings.append(frozen.recordings)
+    # The first render leaves a few scene values in their final, opaque form: one more recording at
+    # most, then only replays.
+    assert frozen.enabled and frozen.failure is None and recordings[1] <= 2 and recordings[-1] == recordings[1]
 
 
 def _hidden_albedo_scene():

@@ -169,3 +169,4 @@ def test11_frozen_passes_replay_camera_moves_exactly_as_traced_passes_render_the
         assert session.stats["frozen"] is freeze and session.stats["freeze_failure"] is None
         session.close()
     assert np.array_equal(images[True], images[False])
+
