@@ -57,6 +57,7 @@ class SCRATCH_PT_render_sampling(_RenderPanel, bpy.types.Panel):
         column.prop(settings, "viewport_samples", text="Viewport")
         column.prop(settings, "samples", text="Render")
         layout.prop(settings, "viewport_start_divisor")
+        layout.prop(settings, "viewport_freeze")
         layout.prop(settings, "seed")
         layout.prop(settings, "max_depth")
 

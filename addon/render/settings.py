@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import bpy
-from bpy.props import EnumProperty, IntProperty
+from bpy.props import BoolProperty, EnumProperty, IntProperty
 
 from ...mitsuba_bridge.scene import FILTERS
 
@@ -40,6 +40,12 @@ class SCRATCH_PG_render(bpy.types.PropertyGroup):
         items=[("1", "1x", "No reduced first pass"), ("2", "2x", "Half resolution first"),
                ("4", "4x", "Quarter resolution first"), ("8", "8x", "One eighth resolution first")],
         default="4", update=_tag_scene)
+    viewport_freeze: BoolProperty(
+        name="Replay Passes",
+        description="Record the viewport's render pass once and replay it after camera moves instead of "
+                    "tracing it again (Dr.Jit's freeze: much faster passes); turn off if the viewport "
+                    "misbehaves",
+        default=True, update=_tag_scene)
     max_depth: IntProperty(
         name="Max Depth", description="Longest light path in segments: 1 shows only light sources, 2 adds "
                                       "direct lighting, each more adds one bounce",

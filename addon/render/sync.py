@@ -95,7 +95,7 @@ def settings_key(scene) -> tuple:
     render = scene.scratch_render
     return (gather_settings(scene), render.film_filter, bool(scene.render.film_transparent),
             float(scene.unit_settings.scale_length), int(render.viewport_samples),
-            int(render.viewport_start_divisor))
+            int(render.viewport_start_divisor), bool(render.viewport_freeze))
 
 
 def _fingerprint(obj):

@@ -104,7 +104,7 @@ class ViewportRender:
         self._view = view
         render = scene.scratch_render
         return sync.Update("build", (description, gather_settings(scene), int(render.viewport_samples),
-                                     int(render.viewport_start_divisor)))
+                                     int(render.viewport_start_divisor), bool(render.viewport_freeze)))
 
     @staticmethod
     def _region_view(context, scene):
@@ -227,12 +227,13 @@ class ViewportRender:
             if update.kind == "build":
                 from ...mitsuba_bridge import interactive, variants
 
-                description, settings, samples, divisor = update.args
+                description, settings, samples, divisor, freeze = update.args
                 if session is not None:
                     session.close()
                     session = None
                 variants.activate(settings.variant)
-                session = interactive.Session(description, settings, samples=samples, start_divisor=divisor)
+                session = interactive.Session(description, settings, samples=samples, start_divisor=divisor,
+                                              freeze=freeze)
             elif session is not None:
                 getattr(session, "set_" + update.kind)(*update.args)
         return session

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import time
 from types import SimpleNamespace
 
@@ -76,6 +77,7 @@ def main():
     parser.add_argument("--height", type=int, default=540)
     parser.add_argument("--moves", type=int, default=50)
     parser.add_argument("--strokes", type=int, default=20)
+    parser.add_argument("--no-freeze", action="store_true", help="trace every pass (no dr.freeze)")
     args = parser.parse_args()
 
     import bpy
@@ -89,6 +91,7 @@ def main():
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
     plate = build_scene(scene, resolution=(args.width, args.height))
+    scene.scratch_render.viewport_freeze = not args.no_freeze
     scene.scratch_render.viewport_samples = 16  # enough for 4 single-sample and 3 four-sample passes
     bpy.context.view_layer.objects.active = plate
     camera = scene.camera
@@ -182,6 +185,8 @@ def main():
           f"{stats['main_thread_median_s'] * 1e3:.2f} ms (texture upload not included)   target <= 50 ms")
     print(f"kernels compiled: {kernels_camera} during {args.moves} camera moves, {kernels_stroke} during "
           f"{args.strokes} strokes   target 0")
+    print(f"frozen passes: {stats['frozen']} ({stats['recordings']} recordings, failure: {stats['freeze_failure']}); "
+          f"load average during the run: {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
     scratch_iridescence.unregister()
 
 
