@@ -29,7 +29,10 @@ Every update either changes parameters in place through ``mi.traverse`` (kept
 opaque, so the kernels stay valid) or, where that cannot express the change
 (another camera projection, another light type, a different material kind),
 rebuilds the scene from the updated description; either way the accumulation
-restarts.  Methods are not thread-safe: one thread owns a session.
+restarts.  Passes are frozen (``dr.freeze``, :mod:`.freezing`): a camera move
+replays the recorded pass without tracing the integrator and the BSDF again;
+other updates record it again (about one traced pass).  Methods are not
+thread-safe: one thread owns a session.
 """
 from __future__ import annotations
 
@@ -40,10 +43,11 @@ import numpy as np
 
 from . import builder
 from .freezing import FrozenRender
+from .kernels import KernelCounter
 from .render import Progress, pass_seed
 from .scene import Camera, Film, RenderSettings, SceneDescription, ScratchedMetal, Shape
 
-__all__ = ["Session", "plan_pass", "KernelCounter", "BATCH_SPP", "SINGLE_SAMPLE_PASSES"]
+__all__ = ["Session", "plan_pass", "BATCH_SPP", "SINGLE_SAMPLE_PASSES"]
 
 #: Full-resolution passes of one sample after each change (a quick, steady refinement) ...
 SINGLE_SAMPLE_PASSES = 4
@@ -65,39 +69,6 @@ def plan_pass(index: int, spp_done: int, spp_total: int, start_divisor: int) -> 
     if full_index >= SINGLE_SAMPLE_PASSES and remaining >= BATCH_SPP:
         return False, BATCH_SPP
     return False, 1
-
-
-class KernelCounter:
-    """Counts kernels that Dr.Jit had to compile (or load from its disk cache) through its kernel history.
-
-    Launches of kernels already in memory do not count: a steady viewport
-    adds nothing.  Reading the history clears it, so only one counter should
-    be active at a time.
-    """
-
-    def __init__(self):
-        import drjit as dr
-
-        self._previous = dr.flag(dr.JitFlag.KernelHistory)
-        dr.set_flag(dr.JitFlag.KernelHistory, True)
-        dr.kernel_history()  # drop what happened before
-        self.compiled = 0
-
-    def poll(self) -> int:
-        """Kernels new since the last call (also added to ``compiled``)."""
-        import drjit as dr
-
-        new = sum(1 for entry in dr.kernel_history()
-                  if entry["type"] == dr.KernelType.JIT
-                  and (not entry.get("cache_hit", 0) or entry.get("cache_disk", 0)))
-        self.compiled += new
-        return new
-
-    def close(self) -> None:
-        import drjit as dr
-
-        dr.kernel_history()
-        dr.set_flag(dr.JitFlag.KernelHistory, self._previous)
 
 
 def _preview_film(film: Film, divisor: int) -> Film:
