@@ -173,6 +173,30 @@ def main():
     viewport.stop()
     viewport.join(30.0)
 
+    # ---- per-pass cost of tracing: frozen and traced sessions side by side, interleaved (same load)
+    import dataclasses
+
+    from scratch_iridescence.addon.render.gather import gather_scene, gather_settings
+    from scratch_iridescence.mitsuba_bridge import interactive
+
+    camera_now, film = viewport._view
+    description = gather_scene(bpy.context.evaluated_depsgraph_get(), view=(camera_now, film))
+    sessions = {freeze: interactive.Session(description, gather_settings(scene), samples=64, freeze=freeze)
+                for freeze in (True, False)}
+    pass_times = {(freeze, kind): [] for freeze in sessions for kind in ("preview", "full")}
+    for round_index in range(7):
+        for freeze, session in sessions.items():
+            moved = np.array(camera_now.to_world)
+            moved[0, 3] += 1e-4 * round_index
+            session.set_camera(dataclasses.replace(camera_now, to_world=moved))
+            for kind in ("preview", "full"):
+                began = time.perf_counter()
+                session.step(0.0)
+                if round_index:  # the first round records (frozen) or compiles
+                    pass_times[freeze, kind].append(time.perf_counter() - began)
+    for session in sessions.values():
+        session.close()
+
     median = lambda values: float(np.median(values))  # noqa: E731
     print(f"camera change -> preview (1/4 res) {median(camera_previews) * 1e3:.0f} ms median, "
           f"-> full res 1 spp {median(camera_fulls) * 1e3:.0f} ms median ({args.moves} moves)")
@@ -185,6 +209,10 @@ def main():
           f"{stats['main_thread_median_s'] * 1e3:.2f} ms (texture upload not included)   target <= 50 ms")
     print(f"kernels compiled: {kernels_camera} during {args.moves} camera moves, {kernels_stroke} during "
           f"{args.strokes} strokes   target 0")
+    for kind, label in (("preview", "1/4-res preview pass"), ("full", "full-res 1-spp pass")):
+        frozen, traced = median(pass_times[True, kind]), median(pass_times[False, kind])
+        print(f"{label}: frozen {frozen * 1e3:.0f} ms, traced {traced * 1e3:.0f} ms (ratio {frozen / traced:.2f}, "
+              f"tracing costs {(traced - frozen) * 1e3:.0f} ms per pass)")
     print(f"frozen passes: {stats['frozen']} ({stats['recordings']} recordings, failure: {stats['freeze_failure']}); "
           f"load average during the run: {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
     scratch_iridescence.unregister()
