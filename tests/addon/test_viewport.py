@@ -189,7 +189,6 @@ def test09_coalescing_keeps_the_last_build_and_the_last_camera():
     assert coalesce([light, build, camera1, light, camera2]) == [build, light, camera2]
 
 
-@pytest.mark.slow
 def test10_engine_paths_build_update_draw_and_stop(studio):
     """view_update builds, a move reaches the session as a transform, view_draw gets as far as the GPU."""
     pytest.importorskip("mitsuba")
