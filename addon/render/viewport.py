@@ -7,7 +7,8 @@ held only for list swaps.  Worker thread: applies the posted updates to its
 :class:`mitsuba_bridge.interactive.Session` between passes (a pending full
 build drops the updates queued before it; only the last camera counts) and
 renders one pass at a time until the session has its samples, then sleeps
-until the next update.  The image on screen stays until a newer one exists,
+until the next update.  After a preview it waits ``LINGER_SECONDS`` for the
+next change, so that continuous orbiting shows previews, not stale full passes.  The image on screen stays until a newer one exists,
 also while a rebuild compiles.
 
 Only a real window exercises the drawing (``gpu`` raises in background mode):
@@ -34,6 +35,10 @@ __all__ = ["ViewportRender", "coalesce"]
 
 #: Main-thread durations kept for the statistics (seconds per view_update / view_draw call).
 TIMING_WINDOW = 256
+#: After a preview pass the worker waits this long for the next change before it starts a
+#: full-resolution pass, which cannot be interrupted: while the user keeps orbiting or dragging,
+#: only quick previews are rendered (as in Cycles).
+LINGER_SECONDS = 0.05
 
 
 def coalesce(updates: list) -> list:
@@ -192,10 +197,12 @@ class ViewportRender:
 
     # ------------------------------------------------------------------ worker thread
     def _run(self) -> None:
-        session = None
+        session, linger = None, False
         try:
             while True:
                 with self._lock:
+                    if linger and not self._pending and not self._stopping:
+                        self._lock.wait(LINGER_SECONDS)
                     while not self._stopping and not self._pending and (session is None or session.finished):
                         self._lock.wait()
                     if self._stopping:
@@ -205,6 +212,7 @@ class ViewportRender:
                     session = self._apply(session, coalesce(todo))
                     if session is not None and not session.finished:
                         progress = session.step(0.0)
+                        linger = progress.spp_done == 0
                         with self._lock:
                             self._latest, self._version = progress, self._version + 1
                             self._finished, self._error = session.finished, None

@@ -137,6 +137,16 @@ def main():
         camera_previews.append(time.perf_counter() - began)
         wait_for(viewport, target, full=True)
         camera_fulls.append(time.perf_counter() - began)
+    # ---- a continuous orbit: a view_draw every 33 ms for 3 s, as while dragging the view
+    orbit_began, orbit_version = time.perf_counter(), viewport.latest()[1]
+    step = 0
+    while time.perf_counter() - orbit_began < 3.0:
+        step += 1
+        camera.location.x = centre[0] + 0.01 * math.sin(0.05 * step)
+        bpy.context.view_layer.update()
+        viewport.view_draw(engine, view_of(bpy, camera, args.width, args.height), depsgraph)
+        time.sleep(max(0.0, orbit_began + step / 30.0 - time.perf_counter()))
+    orbit_images = viewport.latest()[1] - orbit_version
     kernels_camera = viewport.latest()[4]["kernels_compiled"] - kernels_before
 
     # ---- pen strokes across the plate, each reaching the viewport through view_update
@@ -209,6 +219,7 @@ def main():
     median = lambda values: float(np.median(values))  # noqa: E731
     print(f"camera change -> preview (1/4 res) {median(camera_previews) * 1e3:.0f} ms median, "
           f"-> full res 1 spp {median(camera_fulls) * 1e3:.0f} ms median ({args.moves} moves)")
+    print(f"continuous orbit (30 view changes per second for 3 s): {orbit_images / 3.0:.1f} images per second")
     print(f"scratch table update in the session (median of the strokes): "
           f"{median(stroke_updates) * 1e3:.0f} ms")
     print(f"pen stroke    -> preview (1/4 res) {median(stroke_previews) * 1e3:.0f} ms median, "
