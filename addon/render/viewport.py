@@ -58,6 +58,7 @@ class ViewportRender:
         self._pending: list = []
         self._stopping = False
         self._latest = None  #: newest Progress
+        self._rect = None  #: its pixels as the texture wants them (rows bottom-up, RGBA), made by the worker
         self._version = 0  #: bumped with every new image
         self._finished = False
         self._error: str | None = None
@@ -150,7 +151,9 @@ class ViewportRender:
             elif progress is not None:
                 engine.update_stats("", f"Mitsuba | Sample {progress.spp_done}/{progress.spp_total}")
             if progress is not None:
-                self.draw(engine, scene, context.region, progress, version)
+                with self._lock:
+                    rect = self._rect
+                self.draw(engine, scene, context.region, progress, version, rect)
             if not finished:
                 engine.tag_redraw()  # keep drawing while the worker refines
         except Exception as error:  # a drawing error must not end in Blender's face every frame
@@ -160,14 +163,17 @@ class ViewportRender:
         finally:
             self.main_thread_seconds.append(time.perf_counter() - began)
 
-    def draw(self, engine, scene, region, progress, version) -> None:
-        """Upload (when new) and draw the image with Blender's display transform."""
+    def draw(self, engine, scene, region, progress, version, rect) -> None:
+        """Upload (when new) and draw the image with Blender's display transform.
+
+        ``rect`` is ``progress.image`` flipped to rows bottom-up, flat RGBA float32 (the worker makes it,
+        so the main thread only copies it into the texture).
+        """
         import gpu
         from gpu_extras.presets import draw_texture_2d
 
         if version != self._texture_version:
             height, width = progress.image.shape[:2]
-            rect = combined_rect(progress.image, bool(scene.render.film_transparent)).ravel()
             pixels = gpu.types.Buffer("FLOAT", rect.size, rect)
             self._texture = gpu.types.GPUTexture((width, height), format="RGBA16F", data=pixels)
             self._texture_version = version
@@ -213,8 +219,9 @@ class ViewportRender:
                     if session is not None and not session.finished:
                         progress = session.step(0.0)
                         linger = progress.spp_done == 0
+                        rect = combined_rect(progress.image, session.description.film.transparent).ravel()
                         with self._lock:
-                            self._latest, self._version = progress, self._version + 1
+                            self._latest, self._rect, self._version = progress, rect, self._version + 1
                             self._finished, self._error = session.finished, None
                             self._stats = session.stats
                 except Exception as error:

@@ -90,7 +90,6 @@ def main():
     import bpy
 
     import scratch_iridescence
-    from scratch_iridescence.addon.render.frame import combined_rect
     from scratch_iridescence.addon.render.viewport import ViewportRender, stats_of
     from scratch_iridescence.addon.scenes.demo import PLATE_SIZE_M, build_scene
 
@@ -103,8 +102,8 @@ def main():
     bpy.context.view_layer.objects.active = plate
     camera = scene.camera
     engine, viewport = Engine(), ViewportRender()
-    # Headless, gpu raises: time the CPU side of drawing instead (the image as a texture-ready rect).
-    viewport.draw = lambda engine, scene, region, progress, version: combined_rect(progress.image, False)
+    # Headless, gpu raises: time the CPU side of drawing instead (the copy into the texture's buffer).
+    viewport.draw = lambda engine, scene, region, progress, version, rect: rect.copy()
 
     def sync(scene_, depsgraph):  # Blender calls view_update from the depsgraph update
         viewport.view_update(view_of(bpy, camera, args.width, args.height), depsgraph)
