@@ -20,6 +20,12 @@ M_TO_UM = 1e6
 __all__ = ["SCRATCH_PG_object"]
 
 
+def _tag_object(settings, context):
+    # Properties defined in Python tag no depsgraph update: tag the object so that the
+    # Rendered viewport (view_update) hears of the new BSDF settings.
+    settings.id_data.update_tag(refresh={"OBJECT"})
+
+
 class SCRATCH_PG_object(bpy.types.PropertyGroup):
     """Scratch rendering and display settings of one object."""
 
@@ -29,6 +35,7 @@ class SCRATCH_PG_object(bpy.types.PropertyGroup):
         description="Metal under the scratches (spectral conductor data from Mitsuba)",
         items=[(code, label, description) for code, label, description in BASE_MATERIALS],
         default="Al",
+        update=_tag_object,
     )
     coherence_diameter_um: FloatProperty(
         name="Coherence Diameter (µm)",
@@ -37,17 +44,20 @@ class SCRATCH_PG_object(bpy.types.PropertyGroup):
                     "values give sharper diffraction lines and cost more",
         default=DEFAULT_COHERENCE_DIAMETER_M * M_TO_UM,
         min=1.0, soft_min=5.0, soft_max=200.0, precision=1, step=100,
+        update=_tag_object,
     )
     coherent: BoolProperty(
         name="Coherent",
         description="Add the waves of all scratches in a coherence area (interference, grating "
                     "colours); off: add their intensities, as the paper's comparison mode",
         default=True,
+        update=_tag_object,
     )
     diffuse_reflectance: FloatVectorProperty(
         name="Diffuse Base",
         description="Optional incoherent Lambertian base under the scratches (black: none)",
         subtype="COLOR", size=3, min=0.0, max=1.0, default=(0.0, 0.0, 0.0),
+        update=_tag_object,
     )
 
     # ---- viewport overlay ----

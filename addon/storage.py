@@ -161,7 +161,15 @@ def write_scratches(obj, scratches: ScratchSet) -> bytes:
     obj[TOKEN_KEY] = secrets.token_hex(8)
     digest = hashlib.sha256(data).digest()
     _remember(digest, scratches)
+    _tag(obj)
     return digest
+
+
+def _tag(obj) -> None:
+    # ID properties written from Python tag nothing: without this the depsgraph (and with it the
+    # Rendered viewport's view_update) would not hear of the edit.  OBJECT (a transform-level
+    # recalc) is the cheapest tag that reaches the engine; the mesh is not re-evaluated.
+    obj.update_tag(refresh={"OBJECT"})
 
 
 def clear_scratches(obj) -> None:
@@ -169,3 +177,4 @@ def clear_scratches(obj) -> None:
     for key in (DATA_KEY, TOKEN_KEY, SUMMARY_KEY):
         if key in obj:
             del obj[key]
+    _tag(obj)

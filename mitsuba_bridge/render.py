@@ -42,9 +42,12 @@ class Progress:
     spp_done: int
     spp_total: int
     seconds: float
-    chunk: Chunk
-    sums: PairwiseSum
-    partials: tuple  #: the sums' partial images after this chunk (never modified in place)
+    chunk: Chunk | None = None
+    sums: PairwiseSum | None = None
+    partials: tuple = ()  #: the sums' partial images after this chunk (never modified in place)
+    #: An image that is already the one to show (the interactive session's running mean or preview);
+    #: when set, ``image`` is this array and the sums are not used.
+    shown: np.ndarray | None = None
 
     @property
     def fraction(self) -> float:
@@ -56,6 +59,8 @@ class Progress:
 
     @functools.cached_property
     def image(self) -> np.ndarray:
+        if self.shown is not None:
+            return self.shown
         return (PairwiseSum.fold(self.partials) / self.spp_done).astype(np.float32)
 
 

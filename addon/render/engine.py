@@ -1,4 +1,5 @@
-"""The render engine: a thin class that dispatches to :func:`frame.render_frame`."""
+"""The render engine: a thin class that dispatches to :func:`frame.render_frame` (F12) and
+:class:`viewport.ViewportRender` (Rendered viewport shading)."""
 from __future__ import annotations
 
 import bpy
@@ -18,19 +19,42 @@ class MitsubaScratchEngine(bpy.types.RenderEngine):
     # Material and world preview thumbnails would start the spectral path tracer
     # (and compile its kernels) for every swatch: let Blender's EEVEE draw them.
     bl_use_preview = False
-    # No interactive viewport render of our own: Material Preview and Rendered
-    # shading in the viewport use EEVEE, so materials still look right there.
+    # As in Cycles: Material Preview shading uses EEVEE; Rendered shading calls
+    # view_update/view_draw below (Blender uses them whenever the engine has them).
     bl_use_eevee_viewport = True
     # Materials are Blender's standard shader nodes (Principled, Diffuse...),
     # which the exporter translates; no custom node system.
     bl_use_shading_nodes_custom = False
     # Frames go through Blender's compositor and sequencer like any engine's.
     bl_use_postprocess = True
-    # Mitsuba renders on the CPU (LLVM) or through CUDA, never with OpenGL.
+    # Mitsuba renders on the CPU (LLVM) or through CUDA, never with OpenGL; the
+    # viewport image is drawn in view_draw, where Blender provides the context.
     bl_use_gpu_context = False
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.viewport = None
+
+    def __del__(self):
+        # Blender frees the engine when the viewport leaves Rendered shading or closes:
+        # the worker stops after its current pass (nothing waits for it here).
+        viewport = getattr(self, "viewport", None)
+        if viewport is not None:
+            viewport.stop()
 
     def render(self, depsgraph):
         render_frame(self, depsgraph)
+
+    def view_update(self, context, depsgraph):
+        if self.viewport is None:
+            from .viewport import ViewportRender
+
+            self.viewport = ViewportRender()
+        self.viewport.view_update(context, depsgraph)
+
+    def view_draw(self, context, depsgraph):
+        if self.viewport is not None:
+            self.viewport.view_draw(self, context, depsgraph)
 
 
 def register():

@@ -53,7 +53,11 @@ class SCRATCH_PT_render_sampling(_RenderPanel, bpy.types.Panel):
         layout = self.layout
         layout.use_property_split = True
         settings = context.scene.scratch_iridescence
-        layout.prop(settings, "samples")
+        column = layout.column(align=True)
+        column.prop(settings, "viewport_samples", text="Viewport")
+        column.prop(settings, "samples", text="Render")
+        layout.prop(settings, "viewport_start_divisor")
+        layout.prop(settings, "viewport_freeze")
         layout.prop(settings, "seed")
         layout.prop(settings, "max_depth")
 

@@ -2,11 +2,18 @@
 from __future__ import annotations
 
 import bpy
-from bpy.props import EnumProperty, IntProperty
+from bpy.props import BoolProperty, EnumProperty, IntProperty
 
 from ...mitsuba_bridge.scene import FILTERS
 
 __all__ = ["SCRATCH_PG_render"]
+
+
+def _tag_scene(settings, context):
+    # Properties defined in Python tag no depsgraph update: tag the scene so that the Rendered
+    # viewport (view_update) restarts with the new settings.
+    settings.id_data.update_tag()
+
 
 _FILTER_LABELS = {
     "box": ("Box", "One pixel wide box: every glint lands in exactly one pixel (best for scratches)"),
@@ -21,23 +28,40 @@ class SCRATCH_PG_render(bpy.types.PropertyGroup):
 
     samples: IntProperty(
         name="Samples", description="Samples per pixel; glints and diffraction colours need many",
-        default=64, min=1, soft_max=4096)
+        default=64, min=1, soft_max=4096, update=_tag_scene)
+    viewport_samples: IntProperty(
+        name="Viewport Samples", description="Samples per pixel after which the Rendered viewport stops "
+                                             "refining (and stops using the CPU or GPU)",
+        default=1024, min=1, soft_max=16384, update=_tag_scene)
+    viewport_start_divisor: EnumProperty(
+        name="Start Pixel Size",
+        description="After each change the viewport first renders one sample with pixels this many times "
+                    "larger (fast), then refines at full resolution",
+        items=[("1", "1x", "No reduced first pass"), ("2", "2x", "Half resolution first"),
+               ("4", "4x", "Quarter resolution first"), ("8", "8x", "One eighth resolution first")],
+        default="4", update=_tag_scene)
+    viewport_freeze: BoolProperty(
+        name="Replay Passes",
+        description="Record the viewport's render pass once and replay it after camera moves instead of "
+                    "tracing it again (Dr.Jit's freeze: much faster passes); turn off if the viewport "
+                    "misbehaves",
+        default=True, update=_tag_scene)
     max_depth: IntProperty(
         name="Max Depth", description="Longest light path in segments: 1 shows only light sources, 2 adds "
                                       "direct lighting, each more adds one bounce",
-        default=8, min=1, soft_max=64)
+        default=8, min=1, soft_max=64, update=_tag_scene)
     seed: IntProperty(name="Seed", description="Seed of the random samples (change for another noise pattern)",
-                      default=0, min=0)
+                      default=0, min=0, update=_tag_scene)
     variant: EnumProperty(
         name="Device",
         description="Mitsuba variant; all are spectral, which diffraction colours need",
         items=[("auto", "Automatic", "The GPU (CUDA) when an NVIDIA GPU is available, else the CPU"),
                ("cuda_ad_spectral", "GPU (CUDA)", "Mitsuba's cuda_ad_spectral variant (NVIDIA GPUs)"),
                ("llvm_ad_spectral", "CPU (LLVM)", "Mitsuba's llvm_ad_spectral variant (vectorised CPU)")],
-        default="auto")
+        default="auto", update=_tag_scene)
     film_filter: EnumProperty(
         name="Pixel Filter", description="Reconstruction filter of the film",
-        items=_FILTER_ITEMS, default="box")
+        items=_FILTER_ITEMS, default="box", update=_tag_scene)
 
 
 def register():

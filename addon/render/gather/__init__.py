@@ -20,7 +20,7 @@ from .meshes import mesh_parts
 from .report import GatherError, Warnings
 from .world import gather_world
 
-__all__ = ["gather_scene", "gather_settings", "GatherError", "Warnings"]
+__all__ = ["gather_scene", "gather_settings", "GatherError", "Warnings", "GEOMETRY_TYPES", "scratched_metal"]
 
 #: Object types that evaluate to a mesh.
 GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
@@ -32,16 +32,21 @@ def gather_settings(scene) -> RenderSettings:
                           variant=settings.variant)
 
 
-def gather_scene(depsgraph, *, camera=None) -> SceneDescription:
+def gather_scene(depsgraph, *, camera=None, view=None) -> SceneDescription:
     """Gather what ``depsgraph`` (render or viewport) shows through ``camera`` (default: the scene's).
 
-    Raises :class:`GatherError` when nothing sensible can be rendered (no camera);
-    everything else that is not supported becomes a warning in the result.
+    ``view``, a ``(Camera, Film)`` pair, replaces the scene's camera and film
+    (the 3D view's, for the Rendered viewport).  Raises :class:`GatherError`
+    when nothing sensible can be rendered (no camera); everything else that is
+    not supported becomes a warning in the result.
     """
     scene = depsgraph.scene
     warnings = Warnings()
-    film = gather_film(scene, scene.scratch_iridescence.film_filter)
-    camera_description = gather_camera(scene, camera if camera is not None else scene.camera, warnings)
+    if view is not None:
+        camera_description, film = view
+    else:
+        film = gather_film(scene, scene.scratch_iridescence.film_filter)
+        camera_description = gather_camera(scene, camera if camera is not None else scene.camera, warnings)
     materials, shapes, lights, meshes = {}, [], [], {}
     for instance in depsgraph.object_instances:
         obj = instance.object
@@ -87,7 +92,7 @@ def _gather_object(obj, matrix, scene, materials: dict, meshes: dict, warnings: 
         if scratched:
             material_key = f"scratches:{original.name}"
             if material_key not in materials:
-                metal = _scratched_metal(original, scene, mesh.uvs is not None, warnings)
+                metal = scratched_metal(original, scene, mesh.uvs is not None, warnings)
                 materials[material_key] = gather_material(material, warnings, scratch=metal)
         else:
             material_key = "default" if material is None else f"material:{material.name}"
@@ -131,7 +136,7 @@ def _uses_texture(material) -> bool:
                             "texture", "height"))
 
 
-def _scratched_metal(obj, scene, has_uvs: bool, warnings: Warnings) -> ScratchedMetal:
+def scratched_metal(obj, scene, has_uvs: bool, warnings: Warnings) -> ScratchedMetal:
     """The scratch BSDF settings of ``obj`` (its scratches, base metal, coherence)."""
     settings = obj.scratch_iridescence
     metres_per_unit = float(scene.unit_settings.scale_length)

@@ -1,0 +1,409 @@
+"""Interactive rendering: one loaded scene, updated in place and refined pass after pass.
+
+This is the bpy-free core of the viewport's Rendered shading (the engine's
+``view_update``/``view_draw`` are a thin adapter over it); tests, benchmarks
+and scripts use it directly.
+
+.. code-block:: python
+
+    session = Session(description, settings, samples=1024)
+    progress = session.step(0.1)          # passes for up to 0.1 s: Progress(image, spp_done, ...)
+    session.set_camera(camera)            # the sensor's parameters only, no kernel compiled
+    session.set_scratches("scratches:Plate", scratch_set)   # the BSDF's tables only
+    session.set_transform("Plate", matrix)                   # that shape's vertices only
+    session.set_light(0, light); session.set_world(world); session.set_material(key, material)
+    session.set_film(film)                # a new viewport size: rebuilds (new kernels)
+    session.stats                         # kernels_compiled, passes, last_update, rebuilds, ...
+    session.close()
+
+Progressive schedule (fixed, so that every pass size compiles once and a
+session is reproducible): after each change the first pass renders one sample
+at ``1/start_divisor`` of the resolution (shown enlarged), then full-resolution
+passes of one sample follow, from the fifth on passes of ``BATCH_SPP`` samples
+(fewer per-call overheads once the picture has settled), up to ``samples``.
+Pass *i* after a change uses the sampler seed ``pass_seed(settings.seed, i)``,
+so the image after *n* passes is exactly the one a freshly built session gives
+after the same *n* passes.
+
+Every update either changes parameters in place through ``mi.traverse`` (kept
+opaque, so the kernels stay valid) or, where that cannot express the change
+(another camera projection, another light type, a different material kind),
+rebuilds the scene from the updated description; either way the accumulation
+restarts.  Passes are frozen (``dr.freeze``, :mod:`.freezing`): a camera move
+replays the recorded pass without tracing the integrator and the BSDF again;
+other updates record it again (about one traced pass).  Methods are not
+thread-safe: one thread owns a session.
+"""
+from __future__ import annotations
+
+import dataclasses
+import time
+
+import numpy as np
+
+from . import builder
+from .freezing import FrozenRender
+from .kernels import KernelCounter
+from .render import Progress, pass_seed
+from .scene import Camera, Film, RenderSettings, SceneDescription, ScratchedMetal, Shape
+
+__all__ = ["Session", "plan_pass", "BATCH_SPP", "SINGLE_SAMPLE_PASSES"]
+
+#: Full-resolution passes of one sample after each change (a quick, steady refinement) ...
+SINGLE_SAMPLE_PASSES = 4
+#: ... then passes of this many samples (each size/spp pair is one kernel, compiled once).
+BATCH_SPP = 4
+
+
+def plan_pass(index: int, spp_done: int, spp_total: int, start_divisor: int) -> tuple[bool, int]:
+    """``(preview, spp)`` of pass ``index`` after a change.
+
+    ``preview`` passes render at ``1/start_divisor`` resolution and do not count
+    towards ``spp_done``.  The answer depends on the pass index and sample
+    counts only, never on time.
+    """
+    if index == 0 and start_divisor > 1:
+        return True, 1
+    remaining = spp_total - spp_done
+    full_index = index - (1 if start_divisor > 1 else 0)
+    if full_index >= SINGLE_SAMPLE_PASSES and remaining >= BATCH_SPP:
+        return False, BATCH_SPP
+    return False, 1
+
+
+def _preview_film(film: Film, divisor: int) -> Film:
+    width, height = film.size
+    return Film(max(1, -(-width // divisor)), max(1, -(-height // divisor)), filter=film.filter,
+                transparent=film.transparent)
+
+
+def _enlarge(image: np.ndarray, height: int, width: int) -> np.ndarray:
+    """Nearest-neighbour enlargement of a preview to the full size (as Cycles shows its start resolution)."""
+    rows = np.arange(height) * image.shape[0] // height
+    columns = np.arange(width) * image.shape[1] // width
+    return image[rows][:, columns]
+
+
+class Session:
+    """A loaded scene that accepts updates and renders progressively (see the module docstring).
+
+    Parameters
+    ----------
+    description : SceneDescription
+        The scene; the film's size (crop window, if any) is the viewport's.
+    settings : RenderSettings
+        Max depth and seed are used; ``spp`` is replaced by ``samples``.
+    samples : int, optional
+        Samples per pixel after which the session stops rendering (default ``settings.spp``).
+    start_divisor : int
+        The first pass after each change renders at 1/start_divisor resolution (1: no preview).
+    freeze : bool
+        Replay recorded passes (``dr.freeze``, see :mod:`.freezing`) instead of tracing each one again.
+    """
+
+    def __init__(self, description: SceneDescription, settings: RenderSettings, *, samples: int | None = None,
+                 start_divisor: int = 4, freeze: bool = True):
+        if start_divisor < 1:
+            raise ValueError(f"start_divisor must be at least 1, got {start_divisor}")
+        self.settings = settings
+        self.samples = int(settings.spp if samples is None else samples)
+        if self.samples < 1:
+            raise ValueError("samples must be at least 1")
+        self.start_divisor = int(start_divisor)
+        self._counter = KernelCounter()
+        self._render = FrozenRender(freeze)
+        self._stats = {"passes": 0, "rebuilds": 0, "updates": 0, "last_update": "build",
+                       "last_pass_seconds": 0.0, "last_update_seconds": 0.0}
+        self._closed = False
+        self._latest: Progress | None = None
+        self._load(description)
+
+    # ------------------------------------------------------------------ building
+    def _load(self, description: SceneDescription) -> None:
+        import mitsuba as mi
+
+        self.description = description
+        # One Mitsuba shape per described shape (no shapegroups): transforms are updated per shape name.
+        scene_dict = builder.scene_dict(description, self.settings, instancing=False)
+        if self.start_divisor > 1:
+            preview = _preview_film(description.film, self.start_divisor)
+            scene_dict["sensor-preview"] = builder.sensor_dict(description.camera, preview, self.settings)
+        # scene_dict adds "shape-…" entries in the order of description.shapes, nothing else starts so.
+        self._shape_keys = [key for key in scene_dict if key.startswith("shape-")]
+        self._scene = mi.load_dict(scene_dict)
+        self._params = mi.traverse(self._scene)
+        self._render.reset()
+        # The loaded sensors hold their parameters as literals; written once as opaque values now, the
+        # first kernels already take them as inputs and no camera move compiles anything.
+        self._assign(self._camera_values(description.camera))
+        self._restart()
+
+    def _rebuild(self, description: SceneDescription, reason: str) -> None:
+        self._stats["rebuilds"] += 1
+        self._load(description)
+        self._stats["last_update"] = f"rebuild ({reason})"
+
+    def _restart(self) -> None:
+        self._index = 0
+        self._sum = None
+        self._spp_done = 0
+        self._started = time.perf_counter()
+        self._finished = False
+
+    def _updated(self, kind: str, began: float, *, replayable: bool = False) -> None:
+        # Frozen passes see new array values only: anything else records them again (one traced pass).
+        if not replayable:
+            self._render.reset()
+        self._stats["updates"] += 1
+        self._stats["last_update"] = kind
+        self._stats["last_update_seconds"] = time.perf_counter() - began
+        self._restart()
+
+    def _assign(self, values: dict) -> None:
+        """Write parameters, opaque (a literal would be baked into the kernels), and notify the objects."""
+        import drjit as dr
+
+        for key, value in values.items():
+            dr.make_opaque(value)
+            self._params[key] = value
+        self._params.update()
+
+    def _copy_from(self, prefix: str, source) -> bool:
+        """Assign every traversed parameter of ``source`` to the scene's ``prefix + key``.
+
+        False when the structures differ (another plugin type): the caller rebuilds.
+        """
+        import mitsuba as mi
+
+        new = mi.traverse(source)
+        keys = list(new.keys())
+        if not keys or any(prefix + key not in self._params for key in keys):
+            return False
+        self._assign({prefix + key: new[key] for key in keys})
+        return True
+
+    def _sensor_keys(self) -> list[tuple[str, Film]]:
+        sensors = [("sensor.", self.description.film)]
+        if self.start_divisor > 1:
+            sensors.append(("sensor-preview.", _preview_film(self.description.film, self.start_divisor)))
+        return sensors
+
+    # ------------------------------------------------------------------ updates
+    def set_camera(self, camera: Camera) -> None:
+        """Move the view: the sensors' ``to_world``, field of view, shift and clipping, in place."""
+        began = time.perf_counter()
+        previous = self.description.camera
+        self.description = dataclasses.replace(self.description, camera=camera)
+        if camera.projection != previous.projection:
+            self._rebuild(self.description, "projection")
+            return
+        values = self._camera_values(camera)
+        self._assign(values)
+        self._updated("camera", began, replayable=not any(key.endswith("_clip") for key in values))
+
+    def _camera_values(self, camera: Camera) -> dict:
+        import mitsuba as mi
+
+        values = {}
+        for prefix, film in self._sensor_keys():
+            sensor = builder.sensor_dict(camera, film, self.settings)
+            values[prefix + "to_world"] = mi.AffineTransform4f(sensor["to_world"].matrix)
+            # Clipping distances are scalars of the sensor (kernel literals): written only when they change.
+            for name in ("near_clip", "far_clip"):
+                if np.float32(self._params[prefix + name]) != np.float32(sensor[name]):  # stored as float32
+                    values[prefix + name] = sensor[name]
+            if camera.projection == "perspective":
+                values[prefix + "x_fov"] = mi.Float(sensor["fov"])
+                values[prefix + "principal_point_offset_x"] = mi.Float(sensor["principal_point_offset_x"])
+                values[prefix + "principal_point_offset_y"] = mi.Float(sensor["principal_point_offset_y"])
+        return values
+
+    def set_film(self, film: Film) -> None:
+        """Another viewport size or filter: a rebuild (each film size is its own kernel)."""
+        if film != self.description.film:
+            self._rebuild(dataclasses.replace(self.description, film=film), "film")
+
+    def set_transform(self, shape_name: str, matrix) -> None:
+        """Place every shape named ``shape_name`` with ``matrix`` (4×4, object → world): its vertices only."""
+        import mitsuba as mi
+
+        from .builder.resources import world_geometry
+
+        began = time.perf_counter()
+        matrix = np.asarray(matrix, dtype=np.float64)
+        indices = [i for i, shape in enumerate(self.description.shapes) if shape.name == shape_name]
+        if not indices:
+            raise KeyError(f"no shape named {shape_name!r} in the scene")
+        shapes = list(self.description.shapes)
+        values = {}
+        for i in indices:
+            old, shapes[i] = shapes[i], dataclasses.replace(shapes[i], to_world=matrix)
+            positions, faces, normals = world_geometry(shapes[i])
+            prefix = self._shape_keys[i] + "."
+            values[prefix + "vertex_positions"] = mi.Float(positions.ravel())
+            if (np.linalg.det(old.to_world[:3, :3]) < 0) != (np.linalg.det(matrix[:3, :3]) < 0):
+                values[prefix + "faces"] = mi.UInt32(faces.ravel())
+            if normals is not None:
+                values[prefix + "vertex_normals"] = mi.Float(normals.ravel())
+        self.description = dataclasses.replace(self.description, shapes=tuple(shapes))
+        self._assign(values)
+        self._updated("transform", began)
+
+    def set_scratches(self, material_key: str, scratches) -> None:
+        """Swap the scratch set of the ``scratch_diffraction`` material ``material_key`` (its tables only)."""
+        from .bsdf import update_scratches
+
+        began = time.perf_counter()
+        material = self.description.materials.get(material_key)
+        if not isinstance(material, ScratchedMetal):
+            raise KeyError(f"{material_key!r} is not a scratched material of the scene")
+        self._replace_material(material_key, dataclasses.replace(material, scratches=scratches))
+        prefix = self._bsdf_prefix(material_key)
+        if prefix is None:  # no shape uses it: nothing is rendered with it
+            self._updated("scratches", began)
+            return
+        update_scratches(self._params, scratches, prefix=prefix)
+        # Passes are recorded again (about one traced pass): replaying recordings across new scratch
+        # tables crashed Dr.Jit 1.5 (a segmentation fault) even where the table sizes stayed the same.
+        self._updated("scratches", began)
+
+    def set_material(self, material_key: str, material) -> None:
+        """Replace a material: its BSDF's parameters in place when the kind stays, else a rebuild."""
+        import mitsuba as mi
+
+        from .bsdf import plugin_dict
+
+        began = time.perf_counter()
+        old = self.description.materials.get(material_key)
+        if old is None:
+            raise KeyError(f"no material {material_key!r} in the scene")
+        self._replace_material(material_key, material)
+        prefix = self._bsdf_prefix(material_key)
+        if prefix is None:
+            self._updated("material", began)
+            return
+        if isinstance(material, ScratchedMetal) and isinstance(old, ScratchedMetal):
+            same_kind = (material.coherent == old.coherent
+                         and (material.diffuse_reflectance is None) == (old.diffuse_reflectance is None)
+                         and (material.material.lower() == "none") == (old.material.lower() == "none"))
+            if same_kind:
+                settings = plugin_dict(None, coherence_diameter=material.coherence_diameter_m,
+                                       unit_scale=material.unit_scale, material=material.material,
+                                       coherent=material.coherent, diffuse_reflectance=material.diffuse_reflectance
+                                       and {"type": "rgb", "value": list(material.diffuse_reflectance)})
+                if self._copy_from(prefix, mi.load_dict(settings)):
+                    if material.scratches is not old.scratches:
+                        self.set_scratches(material_key, material.scratches)
+                    self._updated("material", began)
+                    return
+        elif type(material) is type(old):
+            bsdf = builder.bsdf_dict(material, builder.InMemory(), key=material_key)
+            if self._copy_from(prefix, mi.load_dict(bsdf)):
+                self._updated("material", began)
+                return
+        self._rebuild(self.description, "material kind")
+
+    def set_light(self, index: int, light) -> None:
+        """Replace light ``index`` of the description: its emitter's parameters when the type stays."""
+        import mitsuba as mi
+
+        from .builder import light_dict
+
+        began = time.perf_counter()
+        lights = list(self.description.lights)
+        old, lights[index] = lights[index], light
+        self.description = dataclasses.replace(self.description, lights=tuple(lights))
+        same_type = (type(old) is type(light)
+                     and (getattr(old, "radius", 0.0) > 0) == (getattr(light, "radius", 0.0) > 0))
+        if same_type and self._copy_from(f"light-{index}.", mi.load_dict(light_dict(light))):
+            self._updated("light", began)
+        else:
+            self._rebuild(self.description, "light type")
+
+    def set_world(self, world) -> None:
+        """Replace the world: its emitter's parameters when the type stays."""
+        import mitsuba as mi
+
+        from .builder import world_dict
+
+        began = time.perf_counter()
+        old = self.description.world
+        self.description = dataclasses.replace(self.description, world=world)
+        if (old is not None and world is not None and type(old) is type(world)
+                and self._copy_from("world.", mi.load_dict(world_dict(world, builder.InMemory())))):
+            self._updated("world", began)
+        else:
+            self._rebuild(self.description, "world type")
+
+    def rebuild(self, description: SceneDescription) -> None:
+        """Load ``description`` from scratch (what no in-place update expresses)."""
+        self._rebuild(description, "scene")
+
+    def _replace_material(self, key: str, material) -> None:
+        materials = dict(self.description.materials)
+        materials[key] = material
+        self.description = dataclasses.replace(self.description, materials=materials)
+
+    def _bsdf_prefix(self, material_key: str) -> str | None:
+        """The traversal prefix of the BSDF shared by the shapes of ``material_key`` (None: unused)."""
+        for shape, key in zip(self.description.shapes, self._shape_keys):
+            if shape.material == material_key:
+                return key + ".bsdf."
+        return None
+
+    # ------------------------------------------------------------------ rendering
+    @property
+    def finished(self) -> bool:
+        """Whether ``samples`` are done since the last change (``step`` then renders nothing)."""
+        return self._finished
+
+    def step(self, seconds: float = 0.0) -> Progress:
+        """Render passes for up to ``seconds`` (at least one, unless finished) and return the running image.
+
+        The returned ``Progress`` holds the full-size (H, W, 4) image (an enlarged
+        preview until the first full-resolution pass), the full-resolution
+        samples done and ``samples`` as the total.
+        """
+        if self._closed:
+            raise RuntimeError("the session is closed")
+        began = time.perf_counter()
+        while not self._finished:
+            self._render_pass()
+            if time.perf_counter() - began >= seconds:
+                break
+        return self._latest
+
+    def _render_pass(self) -> None:
+        preview, spp = plan_pass(self._index, self._spp_done, self.samples, self.start_divisor)
+        began = time.perf_counter()
+        image = np.asarray(self._render(self._scene, 1 if preview else 0, spp,
+                                        pass_seed(self.settings.seed, self._index)), dtype=np.float32)
+        self._counter.poll()
+        self._stats["passes"] += 1
+        self._stats["last_pass_seconds"] = time.perf_counter() - began
+        self._index += 1
+        width, height = self.description.film.size
+        if preview:
+            shown = _enlarge(image, height, width)
+        else:
+            self._sum = image * spp if self._sum is None else self._sum + image * spp
+            self._spp_done += spp
+            shown = self._sum / self._spp_done
+            self._finished = self._spp_done >= self.samples
+        self._latest = Progress(self._index, self._spp_done, self.samples, time.perf_counter() - self._started,
+                                shown=shown)
+
+    @property
+    def stats(self) -> dict:
+        """``kernels_compiled`` (since the session began), ``passes``, ``rebuilds``, ``updates``,
+        ``last_update`` (kind), ``last_update_seconds``, ``last_pass_seconds``, ``spp_done``, ``samples``."""
+        return {**self._stats, "kernels_compiled": self._counter.compiled, "spp_done": self._spp_done,
+                "samples": self.samples, "frozen": self._render.enabled, "freeze_failure": self._render.failure,
+                "recordings": self._render.recordings}
+
+    def close(self) -> None:
+        """Release the scene and restore Dr.Jit's kernel-history flag; the session cannot render afterwards."""
+        if not self._closed:
+            self._closed = True
+            self._counter.close()
+            self._scene = self._params = self._sum = None

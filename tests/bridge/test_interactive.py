@@ -1,0 +1,172 @@
+"""The interactive session: in-place updates give the rebuilt scene's image, without compiling kernels."""
+import dataclasses
+
+import numpy as np
+import pytest
+
+from bridge_scenes import camera_at, quad, simple_scene
+from scratch_iridescence.mitsuba_bridge import builder, interactive, render, scratch
+from scratch_iridescence.mitsuba_bridge import scene as S
+
+SETTINGS = S.RenderSettings(seed=3, max_depth=4)
+SAMPLES = 8
+
+
+def scratches(count, seed):
+    return scratch.random_scratches(count, seed=seed, region=((0.1, 0.1), (0.9, 0.9)), length=(0.05, 0.2))
+
+
+def plate_scene(camera=None):
+    """A scratched 2 m plate under a point light and a dim world, 64 × 48 pixels."""
+    metal = S.ScratchedMetal(scratches(200, 1), coherence_diameter_m=30e-6)
+    return simple_scene(film=S.Film(64, 48), camera=camera or S.Camera(camera_at((0, 0, 3)), fov_x_deg=60),
+                        shapes=(S.Shape("plate", quad(2.0), np.eye(4), "scratched"),),
+                        materials={"scratched": metal}, lights=[S.PointLight((0, 0.5, 2), (5.0, 5.0, 5.0))],
+                        world=S.ConstantWorld((0.1, 0.1, 0.1)))
+
+
+def finish(session):
+    progress = session.step(0.0)
+    while not session.finished:
+        progress = session.step(0.0)
+    return progress
+
+
+def rebuilt_image(description):
+    session = interactive.Session(description, SETTINGS, samples=SAMPLES)
+    try:
+        return finish(session).image
+    finally:
+        session.close()
+
+
+@pytest.fixture
+def session(variant):
+    session = interactive.Session(plate_scene(), SETTINGS, samples=SAMPLES)
+    finish(session)  # the first frame compiles what the session needs
+    yield session
+    session.close()
+
+
+def test01_schedule_starts_small_then_refines_with_fixed_pass_sizes():
+    plan = [interactive.plan_pass(i, spp, 64, 4) for i, spp in enumerate([0, 0, 1, 2, 3, 4, 8, 12])]
+    assert plan[0] == (True, 1)                             # a 1/4-resolution preview first
+    assert plan[1:5] == [(False, 1)] * 4                    # then single samples at full resolution
+    assert plan[5:] == [(False, interactive.BATCH_SPP)] * 3
+    assert interactive.plan_pass(9, 62, 64, 4) == (False, 1)  # never more than what remains
+    assert interactive.plan_pass(0, 0, 64, 1) == (False, 1)   # no preview at divisor 1
+
+
+def test02_first_step_shows_the_enlarged_preview_then_full_resolution_passes_count(variant):
+    session = interactive.Session(plate_scene(), SETTINGS, samples=SAMPLES)
+    first = session.step(0.0)
+    assert first.spp_done == 0 and first.image.shape == (48, 64, 4)
+    assert np.array_equal(first.image[::4, ::4], first.image[3::4, 3::4])  # 4 × 4 blocks of one value
+    second = session.step(0.0)
+    assert second.spp_done == 1 and not np.array_equal(second.image[::4, ::4], second.image[1::4, 1::4])
+    session.close()
+
+
+def test03_session_stops_at_its_samples_and_a_closed_one_refuses_to_render(session):
+    passes = session.stats["passes"]
+    assert session.finished and session.stats["spp_done"] == SAMPLES
+    assert session.step(1.0).spp_done == SAMPLES
+    assert session.stats["passes"] == passes  # nothing rendered once finished
+    session.close()
+    with pytest.raises(RuntimeError, match="closed"):
+        session.step()
+
+
+def test04_camera_move_gives_the_rebuilt_image_and_compiles_nothing(session):
+    kernels = session.stats["kernels_compiled"]
+    cameras = [S.Camera(camera_at((0.2 * i, -0.1 * i, 3.0)), fov_x_deg=50 + 3 * i, shift_x=0.02 * i)
+               for i in range(1, 4)]
+    for camera in cameras:
+        session.set_camera(camera)
+        image = finish(session).image
+    assert session.stats["kernels_compiled"] == kernels
+    assert session.stats["last_update"] == "camera" and session.stats["rebuilds"] == 0
+    assert np.array_equal(image, rebuilt_image(plate_scene(cameras[-1])))
+
+
+def test05_new_scratch_sets_of_other_sizes_give_the_rebuilt_image_and_compile_nothing(session):
+    kernels = session.stats["kernels_compiled"]
+    for count in (50, 700, 3000):
+        new_set = scratches(count, seed=count)
+        session.set_scratches("scratched", new_set)
+        image = finish(session).image
+    assert session.stats["kernels_compiled"] == kernels
+    description = plate_scene()
+    metal = dataclasses.replace(description.materials["scratched"], scratches=new_set)
+    assert np.array_equal(image, rebuilt_image(dataclasses.replace(description, materials={"scratched": metal})))
+
+
+def test06_moved_object_gives_the_rebuilt_image(session):
+    matrix = np.eye(4)
+    matrix[:3, :3] = [[0.8, -0.6, 0], [0.6, 0.8, 0], [0, 0, 1]]
+    matrix[:3, 3] = (0.3, -0.2, 0.1)
+    session.set_transform("plate", matrix)
+    image = finish(session).image
+    description = plate_scene()
+    shape = dataclasses.replace(description.shapes[0], to_world=matrix)
+    assert np.array_equal(image, rebuilt_image(dataclasses.replace(description, shapes=(shape,))))
+    with pytest.raises(KeyError):
+        session.set_transform("no such shape", matrix)
+
+
+def test07_light_and_world_changes_give_the_rebuilt_image_in_place(session):
+    light = S.PointLight((0.4, -0.3, 1.5), (1.0, 3.0, 6.0))
+    world = S.ConstantWorld((0.3, 0.2, 0.1))
+    session.set_light(0, light)
+    session.set_world(world)
+    image = finish(session).image
+    assert session.stats["rebuilds"] == 0
+    assert np.array_equal(image, rebuilt_image(dataclasses.replace(plate_scene(), lights=(light,), world=world)))
+
+
+def test08_changes_no_parameter_expresses_rebuild(session):
+    light = S.SunLight((0.0, 0.3, -1.0), (2.0, 2.0, 2.0))  # another light type
+    camera = S.Camera(camera_at((0, 0, 3)), projection="orthographic", ortho_width=2.5)
+    session.set_light(0, light)
+    session.set_camera(camera)
+    image = finish(session).image
+    assert session.stats["rebuilds"] == 2
+    assert np.array_equal(image, rebuilt_image(dataclasses.replace(plate_scene(camera), lights=(light,))))
+
+
+def test09_metal_settings_update_in_place(session):
+    metal = dataclasses.replace(session.description.materials["scratched"], material="Cu",
+                                coherence_diameter_m=50e-6, scratches=scratches(100, 9))
+    session.set_material("scratched", metal)
+    image = finish(session).image
+    assert session.stats["rebuilds"] == 0
+    assert np.array_equal(image, rebuilt_image(dataclasses.replace(plate_scene(), materials={"scratched": metal})))
+
+
+def test10_progressive_image_converges_to_the_final_render_at_equal_spp(variant):
+    """Session and F12 path (other seeds) estimate the same image: their pixel differences average to 0."""
+    spp = 32
+    description = dataclasses.replace(plate_scene(), materials={"scratched": S.Diffuse((0.5, 0.5, 0.5))})
+    session = interactive.Session(description, SETTINGS, samples=spp)
+    viewport = finish(session).image[..., :3]
+    session.close()
+    final = render.render_image(builder.load_scene(description, SETTINGS), spp, seed=1234)[..., :3]
+    difference = (viewport - final).ravel()
+    standard_error = difference.std() / np.sqrt(difference.size)
+    assert abs(difference.mean()) < 5.0 * standard_error  # a 5-sigma margin: fails by chance < 1e-6
+    assert abs(viewport.mean() / final.mean() - 1.0) < 0.02
+
+
+def test11_frozen_passes_replay_camera_moves_exactly_as_traced_passes_render_them(variant):
+    """Orbiting replays the recording (no re-tracing); its image is bit for bit the unfrozen session's."""
+    images = {}
+    for freeze in (True, False):
+        session = interactive.Session(plate_scene(), SETTINGS, samples=SAMPLES, freeze=freeze)
+        finish(session)
+        for step in range(1, 3):
+            session.set_camera(S.Camera(camera_at((0.15 * step, 0.1, 3.0)), fov_x_deg=55 - step))
+            images[freeze] = finish(session).image
+        assert session.stats["frozen"] is freeze and session.stats["freeze_failure"] is None
+        session.close()
+    assert np.array_equal(images[True], images[False])
+
