@@ -288,7 +288,7 @@ class Session:
                          and (material.material.lower() == "none") == (old.material.lower() == "none"))
             if same_kind:
                 settings = plugin_dict(None, coherence_diameter=material.coherence_diameter_m,
-                                       unit_scale=material.unit_scale, material=material.material,
+                                       unit_scale=material.metres_per_unit, material=material.material,
                                        coherent=material.coherent, diffuse_reflectance=material.diffuse_reflectance
                                        and {"type": "rgb", "value": list(material.diffuse_reflectance)})
                 if self._copy_from(prefix, mi.load_dict(settings)):
