@@ -5,8 +5,6 @@ Blender is imported by the fixtures, not here, so that ``tests/addon/geometry/``
 """
 import pytest
 
-from strokes import stroke  # noqa: F401  (kept for tests written against the old location; import strokes)
-
 bpy = pytest.importorskip("bpy")
 
 
@@ -58,3 +56,14 @@ def scratched_plane(plane):
                                                             length=(0.05, 0.1)))
     return plane
 
+
+@pytest.fixture(scope="module")
+def cycles(addon):
+    """Blender's Cycles add-on enabled for a module's comparisons (skips where the build has none)."""
+    import addon_utils
+
+    addon_utils.enable("cycles", default_set=True)
+    if not hasattr(bpy.types.Scene, "cycles"):
+        pytest.skip("Cycles is not available in this Blender build")
+    yield
+    addon_utils.disable("cycles", default_set=True)

@@ -5,22 +5,10 @@ small orthographic camera; the engine and Cycles must agree on its radiance.
 """
 import math
 
-import numpy as np
 import pytest
 
 bpy = pytest.importorskip("bpy")
 from render_scenes import add_camera, add_light, add_plane, material, render_to, set_world, setup_render  # noqa: E402
-
-
-@pytest.fixture(scope="module")
-def cycles(addon):
-    import addon_utils
-
-    addon_utils.enable("cycles", default_set=True)
-    if not hasattr(bpy.types.Scene, "cycles"):
-        pytest.skip("Cycles is not available in this Blender build")
-    yield
-    addon_utils.disable("cycles", default_set=True)
 
 
 def floor_radiance(engine, build, tmp_path, camera_x=0.0):

@@ -36,17 +36,6 @@ MODEL_DIFFERENCES = {
 }
 
 
-@pytest.fixture(scope="module")
-def cycles(addon):
-    import addon_utils
-
-    addon_utils.enable("cycles", default_set=True)
-    if not hasattr(bpy.types.Scene, "cycles"):
-        pytest.skip("Cycles is not available in this Blender build")
-    yield
-    addon_utils.disable("cycles", default_set=True)
-
-
 def blocks(image, size=8):
     height, width = image.shape
     return image.reshape(height // size, size, width // size, size).mean(axis=(1, 3))

@@ -6,13 +6,12 @@ bytes; damaged bytes give the same ``StoredScratchesError`` to the overlay, the
 eraser, Export, Export Mitsuba Scene and F12, never a traceback or a silent
 substitute.
 """
-import io
 
-import numpy as np
 import pytest
+from damaged_files import overflowing_offsets_file
 
 bpy = pytest.importorskip("bpy")
-from conftest import stroke  # noqa: E402
+from strokes import stroke  # noqa: E402
 from render_scenes import add_camera, add_light, setup_render  # noqa: E402
 from scratch_iridescence.addon import storage  # noqa: E402
 from scratch_iridescence.addon.ui.overlay import overlay_data, overlay_error  # noqa: E402
@@ -84,22 +83,12 @@ def test_damaged_blend_reopened_in_the_same_session_is_refused(stored, tmp_path)
 
 
 # ------------------------------------------------------- every reader, one error
-def overflowing_file() -> bytes:
-    """A scratch file whose offsets wrap around in int64 (the old check passed it)."""
-    offsets = np.array([0, 2**63 - 1, -2**63 + 1, -1, 8], dtype=np.int64)
-    count = len(offsets) - 1
-    stream = io.BytesIO()
-    np.savez(stream, format=np.array(scratch.FORMAT), uv=np.full((8, 2), 0.5), offsets=offsets,
-             width=np.full(count, 1e-6), depth=np.full(count, 1e-7), profile=np.zeros(count, np.uint8),
-             width_variation=np.zeros((count, 2)), depth_variation=np.zeros((count, 2)),
-             seed=np.zeros(count, np.uint32))
-    return stream.getvalue()
 
 
 @pytest.fixture
 def broken(stored):
     """The plane whose stored set is the overflowing file (as a damaged .blend would hold it)."""
-    replace_bytes_keeping_the_token(stored, overflowing_file())
+    replace_bytes_keeping_the_token(stored, overflowing_offsets_file())
     return stored
 
 
@@ -108,7 +97,7 @@ MESSAGE = r"object 'Plane' \(stored scratches\): field 'offsets': offsets\[1\] i
 
 def test_import_refuses_the_file_and_keeps_the_stored_set(stored, tmp_path):
     path = tmp_path / "overflow.npz"
-    path.write_bytes(overflowing_file())
+    path.write_bytes(overflowing_offsets_file())
     before = storage.raw_scratch_bytes(stored)
     with pytest.raises(RuntimeError, match=f"{path}: field 'offsets': offsets\\[1\\] is 9223372036854775807"):
         bpy.ops.scratch.import_file(filepath=str(path), mode="ADD")

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 bpy = pytest.importorskip("bpy")
-from conftest import stroke  # noqa: E402
+from strokes import stroke  # noqa: E402
 from render_scenes import add_camera, add_light, material, set_world, setup_render  # noqa: E402
 from scratch_iridescence.addon import storage  # noqa: E402
 from scratch_iridescence.addon.render import sync  # noqa: E402

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from damaged_files import overflowing_offsets_file
 
 from scratch_iridescence.mitsuba_bridge import scratch
 from scratch_iridescence.mitsuba_bridge.__main__ import main
@@ -13,15 +14,6 @@ from scratch_iridescence.mitsuba_bridge.__main__ import main
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def overflowing_offsets() -> bytes:
-    offsets = np.array([0, 2**63 - 1, -2**63 + 1, -1, 8], dtype=np.int64)
-    count = len(offsets) - 1
-    stream = io.BytesIO()
-    np.savez(stream, format=np.array(scratch.FORMAT), uv=np.full((8, 2), 0.5), offsets=offsets,
-             width=np.full(count, 1e-6), depth=np.full(count, 1e-7), profile=np.zeros(count, np.uint8),
-             width_variation=np.zeros((count, 2)), depth_variation=np.zeros((count, 2)),
-             seed=np.zeros(count, np.uint32))
-    return stream.getvalue()
 
 
 def flipped_crc_protected_byte() -> bytes:
@@ -31,7 +23,7 @@ def flipped_crc_protected_byte() -> bytes:
 
 
 DAMAGED = {
-    "offsets.npz": (overflowing_offsets, "field 'offsets'"),
+    "offsets.npz": (overflowing_offsets_file, "field 'offsets'"),
     "crc.npz": (flipped_crc_protected_byte, "field 'uv'"),
     "junk.npz": (lambda: scratch.dumps(scratch.random_scratches(3, seed=1)) + b"junk", "trailing bytes"),
     "v01.npz": (lambda: _with_format("scratch-iridescence/01"), "field 'format'"),
@@ -60,7 +52,7 @@ def test_info_reports_a_damaged_file_in_one_line(tmp_path, capsys, name):
 def test_info_goes_on_after_a_damaged_file(tmp_path, capsys):
     good = scratch.save(scratch.random_scratches(7, seed=3), tmp_path / "good.npz")
     bad = tmp_path / "bad.npz"
-    bad.write_bytes(overflowing_offsets())
+    bad.write_bytes(overflowing_offsets_file())
     missing = tmp_path / "missing.npz"
     assert main(["info", str(bad), str(missing), str(good)]) == 1
     captured = capsys.readouterr()
@@ -70,7 +62,7 @@ def test_info_goes_on_after_a_damaged_file(tmp_path, capsys):
 
 def test_info_in_a_fresh_process_prints_no_traceback(tmp_path):
     bad = tmp_path / "bad.npz"
-    bad.write_bytes(overflowing_offsets())
+    bad.write_bytes(overflowing_offsets_file())
     done = subprocess.run([sys.executable, "-m", "scratch_iridescence.mitsuba_bridge", "info", str(bad)], capture_output=True,
                           text=True, cwd=ROOT, timeout=120)
     assert done.returncode == 1 and "Traceback" not in done.stderr and "field 'offsets'" in done.stderr
