@@ -85,7 +85,14 @@ def main():
     parser.add_argument("--moves", type=int, default=50)
     parser.add_argument("--strokes", type=int, default=20)
     parser.add_argument("--no-freeze", action="store_true", help="trace every pass (no dr.freeze)")
+    parser.add_argument("--full-builds", action="store_true",
+                        help="rebuild the whole scratch tables on each stroke (the reference for bsdf/incremental.py)")
     args = parser.parse_args()
+    if args.full_builds:
+        from scratch_iridescence.mitsuba_bridge.bsdf import incremental, plugin
+
+        plugin.update_tables = lambda previous, scratches, cell_size: incremental.update_tables(
+            None, scratches, cell_size)
 
     import bpy
 
