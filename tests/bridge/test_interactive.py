@@ -191,3 +191,14 @@ def test12_appended_strokes_extend_the_tables_give_the_rebuilt_image_and_compile
     assert build_tables(current).cell_size == kept_cell_size
     metal = dataclasses.replace(description.materials["scratched"], scratches=current)
     assert np.array_equal(image, rebuilt_image(dataclasses.replace(description, materials={"scratched": metal})))
+
+
+def test13_the_kernel_counter_sees_a_new_film_size_compile(session):
+    kernels = session.stats["kernels_compiled"]
+    session.set_film(S.Film(37, 29))  # a size no other test renders: new kernels (compiled or from the disk cache)
+    finish(session)
+    assert session.stats["kernels_compiled"] > kernels
+    settled = session.stats["kernels_compiled"]
+    session.set_camera(S.Camera(camera_at((0.1, 0, 3)), fov_x_deg=60))
+    finish(session)
+    assert session.stats["kernels_compiled"] == settled
