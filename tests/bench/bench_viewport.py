@@ -15,7 +15,9 @@ demo scene of ``addon/scenes/demo.py``, looking through the demo camera, and pri
 Targets (issue 14) on the 2-core CPU: stroke → first updated image ≤ 0.2 s,
 ≥ 5 full-resolution 1-spp passes/s, main-thread blocking ≤ 50 ms.
 
-Run: ``.venv/bin/python tests/bench/bench_viewport.py [--moves 50 --strokes 20]``.
+Run: ``.venv/bin/python tests/bench/bench_viewport.py [--moves 50 --strokes 20]``; ``--full-builds``
+rebuilds the whole scratch tables on every stroke (the reference for ``bsdf/incremental.py``: run
+both back to back and compare the stroke figures).
 """
 from __future__ import annotations
 
