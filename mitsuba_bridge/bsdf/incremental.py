@@ -99,7 +99,9 @@ def _extend(previous: TableCache, scratches: ScratchSet) -> TableCache | None:
     origin, shape = np.array(old.origin), np.array(old.shape, dtype=np.int64)
     lo = np.minimum(previous.a.min(axis=0), previous.b.min(axis=0))
     hi = np.maximum(previous.a.max(axis=0), previous.b.max(axis=0))
-    if np.any(np.minimum(na.min(axis=0), nb.min(axis=0)) < lo) or np.any(np.maximum(na.max(axis=0), nb.max(axis=0)) > hi):
+    new_lo = np.minimum(na.min(axis=0), nb.min(axis=0))
+    new_hi = np.maximum(na.max(axis=0), nb.max(axis=0))
+    if np.any(new_lo < lo) or np.any(new_hi > hi):
         return None  # another box: another origin, shape or margin
 
     # ---- segment rows: the new pieces go after the old ones of their midpoint's cell (stable sort)
