@@ -29,7 +29,11 @@ from ..scratch import ScratchSet
 from .references import CHUNK, cell_references, doubled_angles, empty_aligned, normals, offsets_in_cell
 from .tables import GridTables, _cells, _pieces, _reference_limit, _segment_rows, build_sorted
 
-__all__ = ["TableCache", "update_tables"]
+__all__ = ["TableCache", "update_tables", "MAX_CACHED_PIECES"]
+
+#: Sets with more pieces keep no float64 ends (32 bytes a piece) and are always built in full: a
+#: dense set (the CD's millions of chords) is not painted stroke by stroke, and F12 holds its BSDF.
+MAX_CACHED_PIECES = 1 << 20
 
 
 @dataclass(frozen=True, eq=False)
@@ -38,8 +42,8 @@ class TableCache:
 
     scratches: ScratchSet
     tables: GridTables
-    a: np.ndarray
-    b: np.ndarray
+    a: np.ndarray | None  #: None above MAX_CACHED_PIECES pieces (no extension then)
+    b: np.ndarray | None
     cell_size_hint: float  #: the hint the first full build got (0: automatic)
     incremental: bool = False  #: whether this build extended the previous one (for tests and statistics)
 
@@ -61,7 +65,8 @@ def update_tables(previous: TableCache | None, scratches: ScratchSet, cell_size:
         ``.tables`` equals ``build_tables(scratches, c)`` where ``c`` is ``cell_size``, or, after
         appended scratches under an automatic hint, the cell size of ``previous``.
     """
-    if previous is None or previous.cell_size_hint != cell_size or not _appends(previous.scratches, scratches):
+    if (previous is None or previous.a is None or previous.cell_size_hint != cell_size
+            or not _appends(previous.scratches, scratches)):
         return _full(scratches, cell_size, cell_size)
     merged = _extend(previous, scratches)
     if merged is not None:
@@ -71,6 +76,8 @@ def update_tables(previous: TableCache | None, scratches: ScratchSet, cell_size:
 
 def _full(scratches, cell_size, hint) -> TableCache:
     tables, a, b = build_sorted(scratches, cell_size)
+    if len(a) > MAX_CACHED_PIECES:
+        a = b = None
     return TableCache(scratches, tables, a, b, hint)
 
 
@@ -173,4 +180,6 @@ def _extend(previous: TableCache, scratches: ScratchSet) -> TableCache | None:
     tables = GridTables(segments=segments, references=references, offsets=offsets, cell_frames=frames,
                         cell_start=cell_start, origin=old.origin, cell_size=h, shape=old.shape,
                         piece_count=n_old + n_new, margin=margin)
+    if len(a) > MAX_CACHED_PIECES:
+        a = b = None
     return TableCache(scratches, tables, a, b, previous.cell_size_hint, True)

@@ -67,3 +67,16 @@ def test_other_changes_are_full_builds():
     flat = dataclasses.replace(one, uv=np.repeat(one.uv[:1], len(one.uv), axis=0))
     same = update_tables(cache, ScratchSet.concatenate([scratches, flat]))
     assert same.incremental and same.tables is cache.tables
+
+
+def test_sets_over_the_cache_limit_are_always_built_in_full(monkeypatch):
+    from scratch_iridescence.mitsuba_bridge.bsdf import incremental
+
+    scratches = plate(300, 8)
+    monkeypatch.setattr(incremental, "MAX_CACHED_PIECES", 100)  # 300 scratches give thousands of pieces
+    cache = update_tables(None, scratches)
+    assert cache.a is None
+    more = ScratchSet.concatenate([scratches, plate(2, 9, region=((0.3, 0.3), (0.7, 0.7)))])
+    extended = update_tables(cache, more)
+    assert not extended.incremental
+    assert_same(extended.tables, build_tables(more))
