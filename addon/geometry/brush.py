@@ -14,7 +14,11 @@ from .scatter import Placed, build_set, empty_placed
 from .surface import SEAM_TOLERANCE_UV, Surface
 from .trace import BOUNDARY, END, SEAM_IN, START, assemble, enter_towards, trace_paths
 
-__all__ = ["pen_scratches", "spray_centres"]
+__all__ = ["pen_scratches", "spray_centres", "spray_centres_with_pressure", "pressure_factor", "stroke_pressure",
+           "MIN_PRESSURE"]
+
+#: Lowest pressure factor: a scratch keeps a width and depth > 0 at the lightest touch.
+MIN_PRESSURE = 0.05
 
 
 def pen_scratches(surface: Surface, runs, params: dict) -> Placed:
@@ -128,6 +132,28 @@ def _trace_to_targets(surface: Surface, triangle, bary, target):
     return records, last_end, arrived
 
 
+def pressure_factor(pressure, enabled: bool) -> np.ndarray:
+    """What a setting is multiplied by at ``pressure`` (0–1): the pressure itself (at least
+    ``MIN_PRESSURE``) where the setting's pressure toggle is on, else 1 (as Blender's brushes do)."""
+    pressure = np.asarray(pressure, dtype=np.float64)
+    return np.clip(pressure, MIN_PRESSURE, 1.0) if enabled else np.ones_like(pressure)
+
+
+def stroke_pressure(runs_points, runs_pressure) -> float:
+    """The pen's pressure: the mean along the stroke, weighted by length (a scratch has one width and
+    depth; a dab of one point counts as its own pressure)."""
+    total, weight = 0.0, 0.0
+    for points, pressure in zip(runs_points, runs_pressure):
+        points, pressure = np.asarray(points, dtype=np.float64), np.asarray(pressure, dtype=np.float64)
+        if len(points) < 2:
+            total, weight = total + float(pressure.sum()), weight + len(pressure)
+            continue
+        step = np.linalg.norm(np.diff(points, axis=0), axis=1)
+        total += float((0.5 * (pressure[1:] + pressure[:-1]) * step).sum())
+        weight += float(step.sum())
+    return total / weight if weight > 0 else 1.0
+
+
 def spray_centres(rng: np.random.Generator, runs_points, normals, radius: float, density: float,
                   jitter: float):
     """Where a spray stroke puts scratches, before they are snapped to the surface.
@@ -152,13 +178,35 @@ def spray_centres(rng: np.random.Generator, runs_points, normals, radius: float,
     centres (N, 3), directions (N, 3) — directions are zero where the stroke has
     no direction (a click); the caller then draws them at random.
     """
+    centres, directions, _ = _spray(rng, runs_points, normals, [None] * len(runs_points), radius, density,
+                                    jitter, False)
+    return centres, directions
+
+
+def spray_centres_with_pressure(rng: np.random.Generator, runs_points, normals, runs_pressure, radius: float,
+                                density: float, jitter: float, density_follows: bool):
+    """:func:`spray_centres` with the stroke's pressure (one array per run, 0–1).
+
+    Returns ``(centres, directions, pressure)``: the pressure at each centre's
+    base point on the stroke (linear between stroke points).  With
+    ``density_follows`` the scratches are thinned to ``pressure_factor`` of the
+    run's highest pressure at their base point, so the expected count along
+    the stroke follows the pressure; without it the centres are exactly those
+    of :func:`spray_centres` with the same ``rng``.
+    """
+    return _spray(rng, runs_points, normals, runs_pressure, radius, density, jitter, density_follows)
+
+
+def _spray(rng, runs_points, normals, runs_pressure, radius, density, jitter, thin):
     lengths = [np.linalg.norm(np.diff(p, axis=0), axis=1).sum() if len(p) > 1 else 0.0 for p in runs_points]
     weights = np.array([length / radius + 1.0 for length in lengths])
-    counts = rng.poisson(density * weights)
-    centres, directions = [], []
-    for points, nrm, n in zip(runs_points, normals, counts):
+    peaks = np.array([1.0 if p is None or not thin else float(pressure_factor(p, True).max()) for p in runs_pressure])
+    counts = rng.poisson(density * weights * peaks)
+    centres, directions, pressures = [], [], []
+    for points, nrm, n, pressure, peak in zip(runs_points, normals, counts, runs_pressure, peaks):
         if n == 0:
             continue
+        pressure = np.ones(len(points)) if pressure is None else np.asarray(pressure, dtype=np.float64)
         points = np.asarray(points, dtype=np.float64)
         nrm = np.asarray(nrm, dtype=np.float64)
         if len(points) > 1:
@@ -168,10 +216,12 @@ def spray_centres(rng: np.random.Generator, runs_points, normals, radius: float,
             segment = np.clip(np.searchsorted(arc, s, side="right") - 1, 0, len(step) - 1)
             f = ((s - arc[segment]) / np.where(step[segment] > 0, step[segment], 1.0))[:, None]
             base = points[segment] + f * (points[segment + 1] - points[segment])
+            at = pressure[segment] + f[:, 0] * (pressure[segment + 1] - pressure[segment])
             along = points[segment + 1] - points[segment]
             normal = nrm[segment]
         else:
             base = np.repeat(points, n, axis=0)
+            at = np.repeat(pressure, n)
             along = np.zeros((n, 3))
             normal = np.repeat(nrm, n, axis=0)
         along = along - np.einsum("ni,ni->n", along, normal)[:, None] * normal
@@ -189,6 +239,10 @@ def spray_centres(rng: np.random.Generator, runs_points, normals, radius: float,
         turn = rng.uniform(-jitter, jitter, n)[:, None]
         directions.append(np.where(has_direction[:, None],
                                    np.cos(turn) * along + np.sin(turn) * np.cross(normal, along), 0.0))
+        pressures.append(at)
+        if thin:  # keep each with probability factor / peak: the expected count follows the pressure
+            keep = rng.uniform(0.0, 1.0, n) * peak < pressure_factor(at, True)
+            centres[-1], directions[-1], pressures[-1] = centres[-1][keep], directions[-1][keep], at[keep]
     if not centres:
-        return np.zeros((0, 3)), np.zeros((0, 3))
-    return np.concatenate(centres), np.concatenate(directions)
+        return np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0)
+    return np.concatenate(centres), np.concatenate(directions), np.concatenate(pressures)

@@ -20,7 +20,7 @@ import numpy as np
 
 from ...mitsuba_bridge.scene import Camera
 
-__all__ = ["view_camera"]
+__all__ = ["view_camera", "border_crop"]
 
 
 def view_camera(view_matrix, window_matrix, is_perspective: bool) -> Camera:
@@ -45,6 +45,33 @@ def view_camera(view_matrix, window_matrix, is_perspective: bool) -> Camera:
         near, far = near + back, far + back
     return Camera(to_world=to_world, projection="orthographic", ortho_width=2.0 / projection[0, 0],
                   shift_x=-0.5 * projection[0, 3], shift_y=-0.5 * projection[1, 3], near=near, far=far)
+
+
+def border_crop(frame_corners, view_matrix, window_matrix, border, region_size) -> tuple[int, int, int, int]:
+    """The render border of a camera view as a film crop ``(x, y, w, h)`` (pixels, origin top-left).
+
+    Parameters
+    ----------
+    frame_corners : (4, 3)
+        World-space corners of the camera's frame (``camera.data.view_frame`` through its matrix).
+    view_matrix, window_matrix : 4 × 4
+        The region's matrices (the frame lands where the region shows it, zoom and offset included).
+    border : (min_x, min_y, max_x, max_y)
+        Blender's ``render.border_*``: fractions of the camera frame, origin at its bottom-left.
+    region_size : (width, height)
+
+    The window is clipped to the region and is at least one pixel (a border outside the region).
+    """
+    width, height = region_size
+    corners = np.c_[np.asarray(frame_corners, dtype=np.float64), np.ones(len(frame_corners))]
+    clip = corners @ (np.asarray(window_matrix, dtype=np.float64) @ np.asarray(view_matrix, dtype=np.float64)).T
+    pixels = (clip[:, :2] / clip[:, 3:] + 1.0) * 0.5 * np.array([width, height])  # y up, as Blender's regions
+    low, high = pixels.min(axis=0), pixels.max(axis=0)
+    border_low = low + np.array(border[:2], dtype=np.float64) * (high - low)
+    border_high = low + np.array(border[2:], dtype=np.float64) * (high - low)
+    x0, y0 = np.clip(np.round(border_low), 0, [width - 1, height - 1]).astype(int)
+    x1, y1 = np.clip(np.round(border_high), [x0 + 1, y0 + 1], [width, height]).astype(int)
+    return int(x0), int(height - y1), int(x1 - x0), int(y1 - y0)
 
 
 def _translate_z(distance: float) -> np.ndarray:

@@ -29,7 +29,7 @@ import numpy as np
 from ...mitsuba_bridge.scene import Film
 from . import sync
 from .frame import MITSUBA_MISSING, combined_rect
-from .view import view_camera
+from .view import border_crop, view_camera
 
 __all__ = ["ViewportRender", "coalesce"]
 
@@ -59,6 +59,7 @@ class ViewportRender:
         self._stopping = False
         self._latest = None  #: newest Progress
         self._rect = None  #: its pixels as the texture wants them (rows bottom-up, RGBA), made by the worker
+        self._crop = None  #: the film's crop window (x, y, w, h from the top-left) of that image, if any
         self._version = 0  #: bumped with every new image
         self._finished = False
         self._error: str | None = None
@@ -116,7 +117,17 @@ class ViewportRender:
     def _region_view(context, scene):
         region, region_data = context.region, context.region_data
         camera = view_camera(region_data.view_matrix, region_data.window_matrix, region_data.is_perspective)
-        film = Film(max(1, region.width), max(1, region.height), filter=scene.scratch_iridescence.film_filter,
+        size = (max(1, region.width), max(1, region.height))
+        crop = None
+        # Camera view with a render border renders only the border, as Cycles does
+        if (getattr(region_data, "view_perspective", None) == "CAMERA" and scene.render.use_border
+                and scene.camera is not None):
+            frame = [scene.camera.matrix_world @ corner for corner in scene.camera.data.view_frame(scene=scene)]
+            render = scene.render
+            crop = border_crop([tuple(corner) for corner in frame], region_data.view_matrix, region_data.window_matrix,
+                               (render.border_min_x, render.border_min_y, render.border_max_x, render.border_max_y),
+                               size)
+        film = Film(*size, crop=crop, filter=scene.scratch_iridescence.film_filter,
                     transparent=bool(scene.render.film_transparent))
         return camera, film
 
@@ -179,7 +190,13 @@ class ViewportRender:
             self._texture_version = version
         gpu.state.blend_set("ALPHA_PREMULT")
         engine.bind_display_space_shader(scene)
-        draw_texture_2d(self._texture, (0, 0), region.width, region.height)
+        with self._lock:
+            crop = self._crop
+        if crop is None:
+            draw_texture_2d(self._texture, (0, 0), region.width, region.height)
+        else:  # the render border: at its place, the rest of the region stays the viewport's background
+            x, y, w, h = crop
+            draw_texture_2d(self._texture, (x, region.height - y - h), w, h)
         engine.unbind_display_space_shader()
         gpu.state.blend_set("NONE")
 
@@ -222,6 +239,7 @@ class ViewportRender:
                         rect = combined_rect(progress.image, session.description.film.transparent).ravel()
                         with self._lock:
                             self._latest, self._rect, self._version = progress, rect, self._version + 1
+                            self._crop = session.description.film.crop
                             self._finished, self._error = session.finished, None
                             self._stats = session.stats
                 except Exception as error:

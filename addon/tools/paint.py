@@ -8,12 +8,12 @@ from __future__ import annotations
 
 import bpy
 import numpy as np
-from bpy.props import EnumProperty, FloatProperty
+from bpy.props import BoolProperty, EnumProperty, FloatProperty
 
 from ...mitsuba_bridge.errors import ParameterError
 from ...mitsuba_bridge.scratch import ScratchSet
 from .. import storage
-from ..geometry.brush import pen_scratches, spray_centres
+from ..geometry.brush import pen_scratches, pressure_factor, spray_centres_with_pressure, stroke_pressure
 from ..operators.editing import USER_ERRORS, check_numbers, combine, fail, plural, metres_per_unit, warn_relaxed_arcs, write
 from ..geometry.erase import cut_scratches, touched_scratches
 from ..geometry.lines import scratch_lines
@@ -44,7 +44,7 @@ def _stroke_on_surface(operator, context):
     if operator.radius > MAX_LENGTH_PER_SIZE * surface.size:
         raise ParameterError(f"Radius ({operator.radius:.4g}) is more than {MAX_LENGTH_PER_SIZE:g} times the "
                          f"object's size ({surface.size:.4g}, its bounding box diagonal)")
-    runs = stroke_runs(picker, locations, starts, SNAP_FRACTION * surface.size)
+    runs = stroke_runs(picker, locations, starts, SNAP_FRACTION * surface.size, operator.stroke_pressures())
     if not runs:
         raise MeshError(f"The stroke misses '{obj.name}': none of its {len(locations)} points "
                         "lies on the surface")
@@ -89,6 +89,23 @@ class SCRATCH_OT_paint_stroke(StrokeOperator, StrokeProperties, LooksProperties,
         name="Direction Jitter", subtype="ANGLE", default=np.radians(15.0), min=0.0, max=np.pi,
         description="Spray: scratch directions follow the stroke within ± this angle")
     seed: seed_property()
+    # Per-setting pressure toggles, as on Blender's own brushes (off: a tablet paints as a mouse).
+    use_pressure_width: BoolProperty(
+        name="Width Pressure", default=False,
+        description="Scale the scratch width by the pen pressure (the pen: its mean along the stroke)")
+    use_pressure_depth: BoolProperty(
+        name="Depth Pressure", default=False,
+        description="Scale the scratch depth by the pen pressure (the pen: its mean along the stroke)")
+    use_pressure_density: BoolProperty(
+        name="Density Pressure", default=False,
+        description="Spray: scale the number of scratches along the stroke by the pen pressure there")
+
+    def _pressed(self, params: dict, pressure) -> dict:
+        """``params`` (Looks.sample arrays) with width and depth scaled as the pressure toggles say."""
+        params = dict(params)
+        params["width"] = params["width"] * pressure_factor(pressure, self.use_pressure_width)
+        params["depth"] = params["depth"] * pressure_factor(pressure, self.use_pressure_depth)
+        return params
 
     def execute(self, context):
         try:
@@ -96,7 +113,10 @@ class SCRATCH_OT_paint_stroke(StrokeOperator, StrokeProperties, LooksProperties,
             looks = self.looks()
             rng = np.random.default_rng(self.seed)
             if self.brush_mode == "PEN":
-                placed = pen_scratches(surface, [(t, b) for t, b, _ in runs], looks.sample(rng, 1))
+                placed = pen_scratches(surface, [(t, b) for t, b, _, _ in runs],
+                                       self._pressed(looks.sample(rng, 1),
+                                                     stroke_pressure([p for _, _, p, _ in runs],
+                                                                     [q for _, _, _, q in runs])))
             else:
                 placed = self._spray(context, surface, picker, runs, looks, rng)
             if placed.scratches.count == 0:
@@ -116,20 +136,22 @@ class SCRATCH_OT_paint_stroke(StrokeOperator, StrokeProperties, LooksProperties,
         length_min, length_max = self.length_range(surface)
         if self.density <= 0:
             raise ParameterError("Density is 0: the spray would paint nothing")
-        travelled = sum(float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum()) for _, _, p in runs)
+        travelled = sum(float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum()) for _, _, p, _ in runs)
         expected = self.density * (len(runs) + travelled / self.radius)
         check_memory(estimate_bytes(min(expected, 2.0**62) + 1), f"Spraying about {_count(expected)} scratches")
-        centres, directions = spray_centres(rng, [p for _, _, p in runs], [surface.normal[t] for t, _, _ in runs],
-                                            self.radius, self.density, self.jitter)
+        centres, directions, pressure = spray_centres_with_pressure(
+            rng, [p for _, _, p, _ in runs], [surface.normal[t] for t, _, _, _ in runs], [q for _, _, _, q in runs],
+            self.radius, self.density, self.jitter, self.use_pressure_density)
         triangle, bary, _, hit = picker.nearest(centres, 0.5 * self.radius + SNAP_FRACTION * surface.size)
-        triangle, bary, directions = triangle[hit], bary[hit], directions[hit]
+        triangle, bary, directions, pressure = triangle[hit], bary[hit], directions[hit], pressure[hit]
         count = len(triangle)
         undirected = ~np.any(directions != 0, axis=1)
         directions[undirected] = surface.direction(triangle[undirected],
                                                    rng.uniform(0.0, 2.0 * np.pi, int(undirected.sum())))
         length = rng.uniform(length_min, length_max, count)
         bend = rng.uniform(-self.bend, self.bend, count) if self.bend > 0 else np.zeros(count)
-        return scratches_from_centres(surface, triangle, bary, directions, length, looks.sample(rng, count),
+        return scratches_from_centres(surface, triangle, bary, directions, length,
+                                      self._pressed(looks.sample(rng, count), pressure),
                                       bend=bend, metres_per_unit=metres_per_unit(context))
 
     def draw(self, context):
@@ -145,6 +167,7 @@ class SCRATCH_OT_paint_stroke(StrokeOperator, StrokeProperties, LooksProperties,
         spray.prop(self, "jitter")
         draw_lengths(spray, self)
         draw_looks(layout.column(), self)
+        _draw_pressure(layout, self)
 
 
 class SCRATCH_OT_erase_stroke(StrokeOperator, StrokeProperties, bpy.types.Operator):
@@ -171,7 +194,7 @@ class SCRATCH_OT_erase_stroke(StrokeOperator, StrokeProperties, bpy.types.Operat
             locator = cached("uv_locator", obj, None, lambda: UVLocator(surface.uv, surface.usable))
             key = (digest, matrix_key(obj))  # the bytes' digest: lines never outlive the set they map
             lines = cached("erase_lines", obj, key, lambda: scratch_lines(scratches, locator, surface.corners))
-            stroke_points = [p for _, _, p in runs]
+            stroke_points = [p for _, _, p, _ in runs]
             # The stroke is sampled every radius / 4: a tiny radius on a long stroke costs memory.
             check_memory(_BYTES_PER_SAMPLE * _samples(_length(stroke_points), self.radius, len(runs)),
                          f"Erasing with a radius of {self.radius:.3g}")
@@ -215,6 +238,15 @@ class SCRATCH_OT_erase_stroke(StrokeOperator, StrokeProperties, bpy.types.Operat
         self.layout.use_property_split = True
         self.layout.row().prop(self, "erase_mode", expand=True)
         self.layout.prop(self, "radius")
+
+
+def _draw_pressure(layout, props) -> None:
+    column = layout.column(heading="Pen Pressure", align=True)
+    column.prop(props, "use_pressure_width", text="Width")
+    column.prop(props, "use_pressure_depth", text="Depth")
+    row = column.row(align=True)
+    row.active = props.brush_mode == "SPRAY"
+    row.prop(props, "use_pressure_density", text="Density")
 
 
 # --------------------------------------------------------------------- tools
@@ -292,6 +324,7 @@ class SCRATCH_TOOL_brush(_ScratchTool):
         row.active = props.brush_mode == "SPRAY"
         row.prop(props, "radius")
         row.prop(props, "density")
+        row.prop(props, "use_pressure_density", text="", icon="STYLUS_PRESSURE")
         layout.popover("SCRATCH_PT_brush_scratches")
 
     def draw_cursor(context, tool, xy):
@@ -339,6 +372,7 @@ class SCRATCH_PT_brush_scratches(bpy.types.Panel):
         spray.prop(props, "jitter")
         draw_lengths(spray, props)
         draw_looks(layout.column(), props)
+        _draw_pressure(layout, props)
 
 
 _CLASSES = (SCRATCH_OT_paint_stroke, SCRATCH_OT_erase_stroke, SCRATCH_PT_brush_scratches)

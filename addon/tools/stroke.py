@@ -38,24 +38,26 @@ NAVIGATION_EVENTS = {
 SNAP_FRACTION = 0.01
 
 
-def stroke_runs(picker: Picker, locations, is_start, max_distance: float):
+def stroke_runs(picker: Picker, locations, is_start, max_distance: float, pressure=None):
     """Snap stroke points to the surface and cut the stroke where it leaves it.
 
-    Returns a list of runs, each (triangle, bary, point) arrays of consecutive
-    points on the surface; a new run starts at every ``is_start`` point and
-    after every point that misses (farther than ``max_distance``).
+    Returns a list of runs, each (triangle, bary, point, pressure) arrays of
+    consecutive points on the surface; a new run starts at every ``is_start``
+    point and after every point that misses (farther than ``max_distance``).
+    ``pressure`` (N,) is the tablet pressure of each point (default 1).
     """
     locations = np.asarray(locations, dtype=np.float64).reshape(-1, 3)
     if len(locations) == 0:
         return []
     triangle, bary, point, hit = picker.nearest(locations, max_distance)
     is_start = np.asarray(is_start, dtype=bool)
+    pressure = np.ones(len(locations)) if pressure is None else np.asarray(pressure, dtype=np.float64)
     starts = is_start | np.r_[True, ~hit[:-1]]
     run_id = np.cumsum(starts)
     runs = []
     for run in np.unique(run_id[hit]):
         member = hit & (run_id == run)
-        runs.append((triangle[member], bary[member], point[member]))
+        runs.append((triangle[member], bary[member], point[member], pressure[member]))
     return runs
 
 
@@ -131,7 +133,7 @@ class StrokeOperator(ObjectModeOperator):
             return self.execute(context)  # not in a viewport: replay whatever stroke was given
         if "seed" in self.properties.bl_rna.properties and not self.properties.is_property_set("seed"):
             self.seed = random.randrange(2**31)
-        self._samples = []  # (location, mouse, is_start, time)
+        self._samples = []  # (location, mouse, is_start, time, pressure)
         self._off_surface = True
         self._started = time.monotonic()
         self._drawer = StrokeDrawer(context, f"{self._header}: drag over {obj.name}", self._status)
@@ -165,7 +167,9 @@ class StrokeOperator(ObjectModeOperator):
             self._off_surface = True
             return
         _, _, point = hit
-        self._samples.append((tuple(point), mouse, self._off_surface, time.monotonic() - self._started))
+        # a mouse reports 1.0; a tablet its pen's pressure (recorded, so that execute replays it)
+        self._samples.append((tuple(point), mouse, self._off_surface, time.monotonic() - self._started,
+                              float(event.pressure)))
         self._off_surface = False
         self._drawer.points.append(tuple(point))
         self._drawer.redraw()
@@ -173,13 +177,13 @@ class StrokeOperator(ObjectModeOperator):
     def _end(self, context):
         self._drawer.restore()
         self.stroke.clear()
-        for location, mouse, is_start, moment in self._samples:
+        for location, mouse, is_start, moment, pressure in self._samples:
             element = self.stroke.add()
             element.name = ""
             element.location = location
             element.mouse = mouse
             element.mouse_event = mouse
-            element.pressure = 1.0
+            element.pressure = pressure
             element.is_start = is_start
             element.time = moment
         if not self._samples:
@@ -197,3 +201,10 @@ class StrokeOperator(ObjectModeOperator):
             self.stroke.foreach_get("location", locations)
             starts = np.array([element.is_start for element in self.stroke], dtype=bool)
         return locations.reshape(-1, 3).astype(np.float64), starts
+
+    def stroke_pressures(self) -> np.ndarray:
+        """(N,) tablet pressure (0–1) of the ``stroke`` collection's points."""
+        pressure = np.empty(len(self.stroke), dtype=np.float32)
+        if len(pressure):
+            self.stroke.foreach_get("pressure", pressure)
+        return pressure.astype(np.float64)

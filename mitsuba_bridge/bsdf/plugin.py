@@ -13,7 +13,7 @@ from . import memory, parameters
 from .fresnel import material_textures
 from .lookup import Grid
 from .model import Model
-from .tables import build_tables
+from .incremental import update_tables
 
 __all__ = ["plugin_class", "MANUAL"]
 
@@ -207,7 +207,9 @@ def _make_class() -> type:
             self._set_scratches(scratches)
 
         def _set_scratches(self, scratches):
-            self.tables = build_tables(scratches, self.cell_size)
+            # a set that only appends scratches (a stroke) extends the previous tables (.incremental)
+            self.table_cache = update_tables(getattr(self, "table_cache", None), scratches, self.cell_size)
+            self.tables = self.table_cache.tables
             self.scratch_count = scratches.count
             self.grid = Grid.upload(self.tables)
             self._rebuild_model()

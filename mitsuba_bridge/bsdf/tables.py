@@ -114,9 +114,17 @@ def build_tables(scratches: ScratchSet, cell_size: float = 0.0) -> GridTables:
         (rounded up to a power of two either way, and never so small that the
         grid exceeds ``MAX_CELLS`` cells or ``MAX_REFERENCES`` references).
     """
+    return build_sorted(scratches, cell_size)[0]
+
+
+def build_sorted(scratches: ScratchSet, cell_size: float = 0.0):
+    """:func:`build_tables` and the pieces' float64 ends ``(a, b)`` in the table's row order.
+
+    For :mod:`.incremental`, which extends a build by appended scratches.
+    """
     a, b, width, depth = _pieces(scratches)
     if len(a) == 0:
-        return _empty_tables()
+        return _empty_tables(), a, b
 
     lo = np.minimum(a.min(axis=0), b.min(axis=0))
     hi = np.maximum(a.max(axis=0), b.max(axis=0))
@@ -136,7 +144,7 @@ def build_tables(scratches: ScratchSet, cell_size: float = 0.0) -> GridTables:
     return GridTables(segments=segments, references=references, offsets=offsets, cell_frames=frames,
                       cell_start=cell_start,
                       origin=(float(origin[0]), float(origin[1])), cell_size=float(h),
-                      shape=(int(shape[0]), int(shape[1])), piece_count=len(segments), margin=margin)
+                      shape=(int(shape[0]), int(shape[1])), piece_count=len(segments), margin=margin), a, b
 
 
 # --------------------------------------------------------------- internals

@@ -3,8 +3,10 @@ module importing ``conftest`` gets whichever conftest pytest loaded last, which 
 the command line's paths)."""
 
 
-def stroke(points, starts=()):
-    """An operator ``stroke`` collection: world-space points, ``is_start`` at the given indices."""
+def stroke(points, starts=(), pressure=None):
+    """An operator ``stroke`` collection: world-space points, ``is_start`` at the given indices, the
+    tablet ``pressure`` of each point (default 1.0, a mouse)."""
+    pressure = [1.0] * len(points) if pressure is None else list(map(float, pressure))
     return [{"name": "", "location": tuple(map(float, p)), "mouse": (0.0, 0.0), "mouse_event": (0.0, 0.0),
-             "pressure": 1.0, "size": 0.0, "x_tilt": 0.0, "y_tilt": 0.0, "time": float(i),
+             "pressure": pressure[i], "size": 0.0, "x_tilt": 0.0, "y_tilt": 0.0, "time": float(i),
              "is_start": i == 0 or i in starts} for i, p in enumerate(points)]

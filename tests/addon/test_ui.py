@@ -161,7 +161,7 @@ def test09_overlay_draw_callback_is_registered_and_safe_headless(scratched_plane
 
 class Event(SimpleNamespace):
     def __init__(self, type, value="PRESS"):
-        super().__init__(type=type, value=value, mouse_region_x=0, mouse_region_y=0)
+        super().__init__(type=type, value=value, mouse_region_x=0, mouse_region_y=0, pressure=1.0)
 
 
 class Drawer:
@@ -197,7 +197,7 @@ def test11_escape_and_right_click_cancel_cleanly(addon, event):
 
 def test12_release_ends_the_stroke_through_execute(plane):
     operator = modal_operator()
-    operator._samples = [((-0.5, 0.0, 0.0), (10, 10), True, 0.0), ((0.5, 0.0, 0.0), (90, 10), False, 0.1)]
+    operator._samples = [((-0.5, 0.0, 0.0), (10, 10), True, 0.0, 0.25), ((0.5, 0.0, 0.0), (90, 10), False, 0.1, 0.75)]
 
     class Stroke(list):
         def add(self):
@@ -209,6 +209,7 @@ def test12_release_ends_the_stroke_through_execute(plane):
     assert operator._drawer.restored == 1
     assert [tuple(e.location) for e in operator.stroke] == [(-0.5, 0.0, 0.0), (0.5, 0.0, 0.0)]
     assert [e.is_start for e in operator.stroke] == [True, False]
+    assert [e.pressure for e in operator.stroke] == [0.25, 0.75]  # the tablet's pressure, replayed by execute
     empty = modal_operator()
     empty.stroke = Stroke()
     assert StrokeOperator._end(empty, bpy.context) == {"CANCELLED"} and empty._drawer.restored == 1

@@ -229,3 +229,39 @@ def test10_engine_paths_build_update_draw_and_stop(studio):
     assert max(viewport.main_thread_seconds) < 5.0  # the build's gather; bench_viewport measures the real figure
     viewport.stop()
     assert viewport.join(timeout=30.0)
+
+
+def test11_camera_view_with_a_render_border_renders_only_the_border(studio):
+    """The border's fractions of the camera frame become the film's crop window, as Cycles renders it."""
+    view = view_of(studio.camera)  # the frame fills the region: same aspect as the render resolution
+    render = studio.scene.render
+    render.border_min_x, render.border_max_x, render.border_min_y, render.border_max_y = 0.25, 0.75, 0.5, 1.0
+    render.use_border = True
+    _, film = ViewportRender._region_view(view, studio.scene)
+    assert film.crop is None  # not a camera view: the whole region
+    view.region_data.view_perspective = "CAMERA"
+    _, film = ViewportRender._region_view(view, studio.scene)
+    # x from 16 to 48 of 64; y from 24 to 48 of 48 counted from the bottom, so rows 0-24 from the top
+    assert (film.width, film.height, film.crop) == (WIDTH, HEIGHT, (16, 0, 32, 24))
+    # zoomed out camera view (the frame fills the middle half of a twice larger region): the same border
+    zoom = np.diag([0.5, 0.5, 1.0, 1.0])
+    view.region_data.window_matrix = zoom @ np.asarray(view.region_data.window_matrix)
+    view.region.width, view.region.height = 2 * WIDTH, 2 * HEIGHT
+    _, film = ViewportRender._region_view(view, studio.scene)
+    assert film.crop == (WIDTH // 2 + 16, HEIGHT // 2, 32, 24)
+    render.use_border = False
+    assert ViewportRender._region_view(view, studio.scene)[1].crop is None
+
+    pytest.importorskip("mitsuba")
+    render.use_border = True
+    view = view_of(studio.camera)
+    view.region_data.view_perspective = "CAMERA"
+    viewport = ViewportRender()
+    viewport.view_update(view, bpy.context.evaluated_depsgraph_get())
+    end = time.monotonic() + 120.0
+    while not viewport.latest()[2] and time.monotonic() < end:
+        time.sleep(0.05)
+    progress, _, _, error, _ = viewport.latest()
+    assert error is None and progress.image.shape == (24, 32, 4)
+    viewport.stop()
+    assert viewport.join(timeout=30.0)

@@ -15,7 +15,9 @@ demo scene of ``addon/scenes/demo.py``, looking through the demo camera, and pri
 Targets (issue 14) on the 2-core CPU: stroke → first updated image ≤ 0.2 s,
 ≥ 5 full-resolution 1-spp passes/s, main-thread blocking ≤ 50 ms.
 
-Run: ``.venv/bin/python tests/bench/bench_viewport.py [--moves 50 --strokes 20]``.
+Run: ``.venv/bin/python tests/bench/bench_viewport.py [--moves 50 --strokes 20]``; ``--full-builds``
+rebuilds the whole scratch tables on every stroke (the reference for ``bsdf/incremental.py``: run
+both back to back and compare the stroke figures).
 """
 from __future__ import annotations
 
@@ -85,7 +87,14 @@ def main():
     parser.add_argument("--moves", type=int, default=50)
     parser.add_argument("--strokes", type=int, default=20)
     parser.add_argument("--no-freeze", action="store_true", help="trace every pass (no dr.freeze)")
+    parser.add_argument("--full-builds", action="store_true",
+                        help="rebuild the whole scratch tables on each stroke (the reference for bsdf/incremental.py)")
     args = parser.parse_args()
+    if args.full_builds:
+        from scratch_iridescence.mitsuba_bridge.bsdf import incremental, plugin
+
+        plugin.update_tables = lambda previous, scratches, cell_size: incremental.update_tables(
+            None, scratches, cell_size)
 
     import bpy
 

@@ -170,3 +170,35 @@ def test11_frozen_passes_replay_camera_moves_exactly_as_traced_passes_render_the
         session.close()
     assert np.array_equal(images[True], images[False])
 
+
+
+def test12_appended_strokes_extend_the_tables_give_the_rebuilt_image_and_compile_nothing(session):
+    from scratch_iridescence.mitsuba_bridge.bsdf.tables import build_tables
+
+    kernels = session.stats["kernels_compiled"]
+    description = plate_scene()
+    current = description.materials["scratched"].scratches
+    kept_cell_size = build_tables(current).cell_size
+    for index in range(3):  # three pen strokes of two scratches each
+        stroke = scratch.random_scratches(2, seed=50 + index, region=((0.3, 0.3), (0.7, 0.7)), length=(0.1, 0.3))
+        current = scratch.ScratchSet.concatenate([current, stroke])
+        session.set_scratches("scratched", current)
+        bsdf = session._scene.shapes()[0].bsdf()
+        assert bsdf.table_cache.incremental and bsdf.tables.cell_size == kept_cell_size
+        image = finish(session).image
+    assert session.stats["kernels_compiled"] == kernels
+    # the automatic search finds the kept cell size for the final set too: the same tables, the same image
+    assert build_tables(current).cell_size == kept_cell_size
+    metal = dataclasses.replace(description.materials["scratched"], scratches=current)
+    assert np.array_equal(image, rebuilt_image(dataclasses.replace(description, materials={"scratched": metal})))
+
+
+def test13_the_kernel_counter_sees_a_new_film_size_compile(session):
+    kernels = session.stats["kernels_compiled"]
+    session.set_film(S.Film(37, 29))  # a size no other test renders: new kernels (compiled or from the disk cache)
+    finish(session)
+    assert session.stats["kernels_compiled"] > kernels
+    settled = session.stats["kernels_compiled"]
+    session.set_camera(S.Camera(camera_at((0.1, 0, 3)), fov_x_deg=60))
+    finish(session)
+    assert session.stats["kernels_compiled"] == settled
