@@ -13,7 +13,8 @@ docstring is the manual.
 """
 from __future__ import annotations
 
-from .parameters import DEFAULT_COHERENCE_DIAMETER_M, DEFAULT_DEPTH_PHASE, DEFAULT_MATERIAL, PLUGIN_NAME
+from .parameters import (DEFAULT_COHERENCE_DIAMETER_M, DEFAULT_CROSSINGS, DEFAULT_DEPTH_PHASE, DEFAULT_MATERIAL,
+                         PLUGIN_NAME)
 
 __all__ = ["register", "plugin_dict", "load", "scratch_parameters", "update_scratches", "PLUGIN_NAME"]
 
@@ -30,7 +31,7 @@ def register() -> None:
 
 def plugin_dict(scratches=None, *, filename=None, coherence_diameter=DEFAULT_COHERENCE_DIAMETER_M,
                 unit_scale=1.0, material=DEFAULT_MATERIAL, eta=None, k=None, diffuse_reflectance=None,
-                coherent=True, depth_phase=DEFAULT_DEPTH_PHASE) -> dict:
+                coherent=True, depth_phase=DEFAULT_DEPTH_PHASE, crossings=DEFAULT_CROSSINGS) -> dict:
     """The ``mi.load_dict`` dictionary of a ``scratch_diffraction`` BSDF.
 
     Parameters
@@ -57,6 +58,10 @@ def plugin_dict(scratches=None, *, filename=None, coherence_diameter=DEFAULT_COH
         ``"kirchhoff"`` (the paper's phase 2π(γ_i + γ_o)d/λ) or ``"incidence"``
         (4πγ_i d/λ: energy-conserving, not reciprocal; docs/bsdf.md, Energy).
         Written to the dictionary only when not the default.
+    crossings : str
+        ``"additive"`` (the paper's sum of transfer functions) or
+        ``"height_field"`` (crossings of rectangular scratches take the deeper
+        depth, docs/model.md §3.4).  Written only when not the default.
 
     Needs an active Mitsuba variant (the tensors belong to it).
     """
@@ -68,6 +73,8 @@ def plugin_dict(scratches=None, *, filename=None, coherence_diameter=DEFAULT_COH
               "unit_scale": float(unit_scale), "coherent": bool(coherent)}
     if depth_phase != DEFAULT_DEPTH_PHASE:
         result["depth_phase"] = str(depth_phase)
+    if crossings != DEFAULT_CROSSINGS:
+        result["crossings"] = str(crossings)
     if eta is not None:
         result["eta"], result["k"] = _spectrum(eta), _spectrum(k)
     else:

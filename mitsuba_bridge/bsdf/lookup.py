@@ -21,7 +21,7 @@ import mitsuba as mi
 from .segment import SegmentGeometry
 from .tables import GridTables, aligned
 
-__all__ = ["Grid", "LocalJacobian", "for_each_segment", "jacobian", "segment_at"]
+__all__ = ["Grid", "LocalJacobian", "for_each_segment", "for_each_crossing", "jacobian", "segment_at"]
 
 #: Cells with more references than this are bisected by offset; shorter ones are scanned.
 BISECT_ABOVE = 6
@@ -42,6 +42,8 @@ class Grid:
     margin: object  #: query padding (cells): the tables' dilation
     cells_u: object  #: opaque mi.Int32 scalars
     cells_v: object
+    crossing_start: object = None  #: mi.UInt32, CSR starts of each piece's crossing partners
+    crossing_partner: object = None  #: mi.UInt32
 
     @classmethod
     def upload(cls, tables: GridTables) -> "Grid":
@@ -56,7 +58,9 @@ class Grid:
             inverse_cell_size=dr.opaque(mi.Float, 1.0 / tables.cell_size),
             margin=dr.opaque(mi.Float, tables.margin),
             cells_u=dr.opaque(mi.Int32, tables.shape[0]),
-            cells_v=dr.opaque(mi.Int32, tables.shape[1]))
+            cells_v=dr.opaque(mi.Int32, tables.shape[1]),
+            crossing_start=_owned(mi.UInt32, tables.crossing_start),
+            crossing_partner=_owned(mi.UInt32, tables.crossing_partner))
 
 
 def _owned(kind, array):
@@ -204,6 +208,23 @@ def for_each_segment(grid: Grid, jac: LocalJacobian, radius, state: tuple,
                          lambda u, v, index, end, search_end, searching, lo_key, hi_key, user:
                              more(u, v, index, end),
                          visit, label="scratch_pieces")[8]
+
+
+def for_each_crossing(grid: Grid, jac: LocalJacobian, piece, state: tuple, body: Callable) -> tuple:
+    """Fold ``body(partner: SegmentGeometry, state) -> state`` over the crossing partners of ``piece``.
+
+    The pairs are listed once, under the piece of lower index (:mod:`.crossings`),
+    so folding this over every piece found by :func:`for_each_segment` visits
+    each crossing pair whose lower piece passes within the window once.
+    """
+    first = dr.gather(mi.UInt32, grid.crossing_start, piece)
+    last = dr.gather(mi.UInt32, grid.crossing_start, piece + 1)
+
+    def step(index, user):
+        partner = dr.gather(mi.UInt32, grid.crossing_partner, index)
+        return index + 1, body(segment_at(grid, jac, partner, True), user)
+
+    return dr.while_loop((first, state), lambda index, user: index < last, step, label="scratch_crossings")[1]
 
 
 def segment_at(grid: Grid, jac: LocalJacobian, piece, active) -> SegmentGeometry:

@@ -182,6 +182,10 @@ def _make_class() -> type:
             if self.depth_phase not in parameters.DEPTH_PHASES:
                 raise ValueError(f"parameter 'depth_phase' must be one of {', '.join(parameters.DEPTH_PHASES)}, "
                                  f"got {self.depth_phase!r}")
+            self.crossings = str(props.get("crossings", parameters.DEFAULT_CROSSINGS))
+            if self.crossings not in parameters.CROSSINGS:
+                raise ValueError(f"parameter 'crossings' must be one of {', '.join(parameters.CROSSINGS)}, "
+                                 f"got {self.crossings!r}")
 
             has_eta, has_k = "eta" in props, "k" in props
             if has_eta != has_k:
@@ -207,17 +211,21 @@ def _make_class() -> type:
             self._set_scratches(scratches)
 
         def _set_scratches(self, scratches):
-            self.tables = build_tables(scratches, self.cell_size)
+            self.tables = build_tables(scratches, self.cell_size, crossings=self._height_field)
             self.scratch_count = scratches.count
             self.grid = Grid.upload(self.tables)
             self._rebuild_model()
+
+        @property
+        def _height_field(self):
+            return self.crossings == "height_field" and self.coherent
 
         def _rebuild_model(self):
             sigma = dr.opaque(mi.Float, dr.slice(self.coherence_diameter) * (1e6 / 6.0))
             scale = dr.opaque(mi.Float, dr.slice(self.unit_scale) * 1e6)
             self.model = Model(grid=self.grid, sigma=sigma, micrometres_per_unit=scale,
                                coherent=self.coherent, eta=self.eta, k=self.k, diffuse=self.diffuse,
-                               depth_phase=self.depth_phase)
+                               depth_phase=self.depth_phase, height_field=self._height_field)
 
         # ------------------------------------------------------ interface
         def _lobes(self, ctx):
@@ -281,7 +289,8 @@ def _make_class() -> type:
                     f"coherence_diameter={dr.slice(self.coherence_diameter):.3g} m, "
                     f"unit_scale={dr.slice(self.unit_scale):.3g} m, material={self.material}, "
                     f"diffuse={'yes' if self.diffuse is not None else 'no'}, "
-                    f"{'coherent' if self.coherent else 'incoherent'}, depth_phase={self.depth_phase}]")
+                    f"{'coherent' if self.coherent else 'incoherent'}, depth_phase={self.depth_phase}, "
+                    f"crossings={self.crossings} ({t.crossing_count} pairs)]")
 
     ScratchDiffraction.__name__ = "ScratchDiffraction"
     return ScratchDiffraction
