@@ -31,7 +31,7 @@ from .references import aligned
 __all__ = ["find_crossings", "MIN_SINE", "PAIR_BUDGET"]
 
 #: Smallest |sin θ| between two crossing pieces that gets the correction (about 5.7°).
-MIN_SINE = 0.1
+MIN_SINE = 0.01
 #: Candidate pairs examined at a time (bounds the temporaries).
 PAIR_BUDGET = 1 << 22
 
