@@ -56,7 +56,7 @@ def find_crossings(a, b, signed_depth, references, cell_start, cell_normals):
         (N + 1,) uint32; the partners of piece ``i`` are
         ``crossing_partner[crossing_start[i]:crossing_start[i + 1]]``.
     crossing_partner:
-        (M,) uint32 (one dummy zero when M = 0: the kernel gathers from it).
+        (max(M, 2),) uint32, padded with zeros (the kernel gathers from it, see below).
     """
     count = len(a)
     e = b - a
@@ -84,7 +84,10 @@ def find_crossings(a, b, signed_depth, references, cell_start, cell_normals):
     pairs = np.unique(np.concatenate(pairs), axis=0)  # a pair may share two (dilated) cells
     crossing_start = np.zeros(count + 1, dtype=np.uint32)
     np.cumsum(np.bincount(pairs[:, 0], minlength=count), out=crossing_start[1:])
-    partner = pairs[:, 1].astype(np.uint32) if len(pairs) else np.zeros(1, dtype=np.uint32)
+    # padded to two entries: Dr.Jit turns a gather from a one-element array into a broadcast, which
+    # would compile a different kernel for a set with exactly one pair
+    partner = np.zeros(max(len(pairs), 2), dtype=np.uint32)
+    partner[:len(pairs)] = pairs[:, 1]
     return aligned(crossing_start), aligned(partner)
 
 

@@ -100,7 +100,7 @@ class GridTables:
     margin: float  #: query padding and piece dilation, in cells
     #: (N + 1,) uint32 CSR starts of each piece's crossing partners (all zero: no crossings listed)
     crossing_start: np.ndarray = None
-    crossing_partner: np.ndarray = None  #: (M,) uint32 partner pieces (one dummy zero when M = 0)
+    crossing_partner: np.ndarray = None  #: uint32 partner pieces, padded to at least two entries
 
     @property
     def crossing_count(self) -> int:
@@ -154,7 +154,7 @@ def build_tables(scratches: ScratchSet, cell_size: float = 0.0, crossings: bool 
 
 
 def _no_crossings(piece_count):
-    return empty_aligned_zeros(piece_count + 1), empty_aligned_zeros(1)
+    return empty_aligned_zeros(piece_count + 1), empty_aligned_zeros(2)
 
 
 def empty_aligned_zeros(count):
@@ -171,7 +171,7 @@ def _empty_tables() -> GridTables:
                       cell_frames=np.array([[0.0, 1.0, 0.0, 0.0]], dtype=np.float32),
                       cell_start=np.zeros(2, dtype=np.uint32), origin=(0.0, 0.0), cell_size=1.0,
                       shape=(1, 1), piece_count=0, margin=0.0,
-                      crossing_start=empty_aligned_zeros(2), crossing_partner=empty_aligned_zeros(1))
+                      crossing_start=empty_aligned_zeros(2), crossing_partner=empty_aligned_zeros(2))
 
 
 def _pieces(scratches: ScratchSet):

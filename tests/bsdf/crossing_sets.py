@@ -47,8 +47,21 @@ class Raster:
         self.x, self.footprints, self.deepest = ref.raster_footprints(scratches, pitch_um, 5 * sigma)
         self.share, self.triple_share = overlap_shares(self.x, self.footprints, sigma)
 
-    def planes(self, wavelength_nm, theta_deg, samples, phi_deg=20.0):
-        """``(wo rows, true f_r, summed f_r)`` over the visible, off-lobe part of a ξ grid."""
+    def pair_overlaps(self):
+        """``[(i, j, pixels)]`` of every overlapping pair of footprints."""
+        if not hasattr(self, "_pairs"):
+            self._pairs = []
+            for i in range(len(self.scratches)):
+                for j in range(i + 1, len(self.scratches)):
+                    common = np.intersect1d(self.footprints[i], self.footprints[j], assume_unique=True)
+                    if len(common):
+                        self._pairs.append((i, j, common))
+        return self._pairs
+
+    def planes(self, wavelength_nm, theta_deg, samples, phi_deg=20.0, pairwise=False):
+        """``(ω_i, wo rows, true f_r, summed f_r)`` over the visible, off-lobe part of a ξ grid, and with
+        ``pairwise`` the f_r of the pairwise inclusion–exclusion (every overlap of two scratches
+        given the shallower one's correction, triple overlaps not) of the same raster."""
         lam = wavelength_nm * 1e-3
         t, p = np.radians(theta_deg), np.radians(phi_deg)
         wi = np.array([np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), np.cos(t)])
@@ -67,7 +80,15 @@ class Raster:
             true = true + transfer * ref.windowed_dft(own, self.x, self.sigma, xi_x, xi_y)
             summed = summed + transfer * ref.windowed_dft(covered, self.x, self.sigma, xi_x, xi_y)
         rows = np.column_stack([wo_x[keep], wo_y[keep], wo_z[keep]])
-        return wi, rows, ref.brdf(true[keep], lam, self.sigma), ref.brdf(summed[keep], lam, self.sigma)
+        result = (wi, rows, ref.brdf(true[keep], lam, self.sigma), ref.brdf(summed[keep], lam, self.sigma))
+        if pairwise:
+            field = summed
+            for i, j, common in self.pair_overlaps():
+                shallow = min(self.scratches[i].depth, self.scratches[j].depth)
+                field = field - (np.exp(1j * k_z * shallow) - 1.0) * ref.windowed_dft(common, self.x, self.sigma,
+                                                                                     xi_x, xi_y)
+            result += (ref.brdf(field[keep], lam, self.sigma),)
+        return result
 
 
 def plugin_brdf(bsdf, wi, rows, wavelength_nm):
