@@ -31,7 +31,7 @@ from .references import aligned
 __all__ = ["find_crossings", "MIN_SINE", "PAIR_BUDGET"]
 
 #: Smallest |sin θ| between two crossing pieces that gets the correction (about 5.7°).
-MIN_SINE = 0.01
+MIN_SINE = 0.1
 #: Candidate pairs examined at a time (bounds the temporaries).
 PAIR_BUDGET = 1 << 22
 
@@ -57,6 +57,9 @@ def find_crossings(a, b, signed_depth, references, cell_start, cell_normals):
         ``crossing_partner[crossing_start[i]:crossing_start[i + 1]]``.
     crossing_partner:
         (max(M, 2),) uint32, padded with zeros (the kernel gathers from it, see below).
+    crossing_along:
+        (max(M, 2),) float32: where the crossing lies along the lower piece (parameter in [0, 1)),
+        ascending per piece, so that the kernel bisects for the crossings inside the window.
     """
     count = len(a)
     e = b - a
@@ -82,13 +85,18 @@ def find_crossings(a, b, signed_depth, references, cell_start, cell_normals):
         found = _crossing(a, e, direction, first, second)
         pairs.append(np.stack([np.minimum(first, second), np.maximum(first, second)], axis=1)[found])
     pairs = np.unique(np.concatenate(pairs), axis=0)  # a pair may share two (dilated) cells
+    along = _parameters(a, e, pairs[:, 0], pairs[:, 1])
+    order = np.lexsort((along, pairs[:, 0]))  # by piece, then along it: the kernel bisects
+    pairs, along = pairs[order], along[order].astype(np.float32)
     crossing_start = np.zeros(count + 1, dtype=np.uint32)
     np.cumsum(np.bincount(pairs[:, 0], minlength=count), out=crossing_start[1:])
     # padded to two entries: Dr.Jit turns a gather from a one-element array into a broadcast, which
     # would compile a different kernel for a set with exactly one pair
     partner = np.zeros(max(len(pairs), 2), dtype=np.uint32)
     partner[:len(pairs)] = pairs[:, 1]
-    return aligned(crossing_start), aligned(partner)
+    crossing_along = np.zeros(len(partner), dtype=np.float32)
+    crossing_along[:len(pairs)] = along
+    return aligned(crossing_start), aligned(partner), aligned(crossing_along)
 
 
 def _cell_groups(cells, sizes):
@@ -114,6 +122,14 @@ def _pairs_in_cells(cells, starts, sizes, references):
     owner, row, col = owner[upper], row[upper], col[upper]
     base = starts[cells][owner]
     return references[base + row].astype(np.int64), references[base + col].astype(np.int64)
+
+
+def _parameters(a, e, first, second):
+    """Parameter along ``first`` of the intersection of the centre lines of ``first`` and ``second``."""
+    cross = e[first, 0] * e[second, 1] - e[first, 1] * e[second, 0]
+    gap = a[second] - a[first]
+    safe = np.where(cross != 0.0, cross, 1.0)
+    return (gap[:, 0] * e[second, 1] - gap[:, 1] * e[second, 0]) / safe
 
 
 def _crossing(a, e, direction, first, second):

@@ -114,7 +114,8 @@ class Model:
                             c = crossing_correction(segment, partner, xi_x, xi_y, k_z, sigma)
                             return spectrum(field[0] + c.re), spectrum(field[1] + c.im)
 
-                        a, b = for_each_crossing(self.grid, jac, piece, (a, b), add_crossing)
+                        a, b = for_each_crossing(self.grid, jac, piece, segment, WINDOW_RADIUS_SIGMAS * sigma, (a, b),
+                                                 add_crossing)
                 else:
                     a, b = spectrum(a + s.abs2()), b + sampling.window_energy(segment, sigma)
             if want_pdf and has_glossy:

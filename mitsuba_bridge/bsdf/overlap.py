@@ -34,7 +34,7 @@ _SERIES_BELOW = 1e-4
 #: its own window expansion: the neglected curvature then stays below ~1 % (docs/model.md §3.4).
 SUB_EDGE_SIGMAS = 0.5
 #: ... and at most this many along each edge (a crossing at |sin θ| = 0.1 of W = 5σ/16 stays exact).
-MAX_SPLIT = 64
+MAX_SPLIT = 8
 
 
 def _scaled_sinc(re, im) -> Cx:

@@ -101,6 +101,7 @@ class GridTables:
     #: (N + 1,) uint32 CSR starts of each piece's crossing partners (all zero: no crossings listed)
     crossing_start: np.ndarray = None
     crossing_partner: np.ndarray = None  #: uint32 partner pieces, padded to at least two entries
+    crossing_along: np.ndarray = None  #: float32 parameter of each crossing along its lower piece
 
     @property
     def crossing_count(self) -> int:
@@ -109,7 +110,8 @@ class GridTables:
     @property
     def nbytes(self) -> int:
         return sum(x.nbytes for x in (self.segments, self.references, self.offsets, self.cell_frames,
-                                      self.cell_start, self.crossing_start, self.crossing_partner))
+                                      self.cell_start, self.crossing_start, self.crossing_partner,
+                                      self.crossing_along))
 
 
 def build_tables(scratches: ScratchSet, cell_size: float = 0.0, crossings: bool = False) -> GridTables:
@@ -142,19 +144,20 @@ def build_tables(scratches: ScratchSet, cell_size: float = 0.0, crossings: bool 
     del width, depth, order
     references, offsets, frames, cell_start = sorted_references(a, b, h, origin, shape, margin)
     if crossings:
-        crossing_start, crossing_partner = find_crossings(a, b, segments[:, 7], references, cell_start,
-                                                          frames[:, 0:2].astype(np.float64))
+        crossing_start, crossing_partner, crossing_along = find_crossings(
+            a, b, segments[:, 7], references, cell_start, frames[:, 0:2].astype(np.float64))
     else:
-        crossing_start, crossing_partner = _no_crossings(len(segments))
+        crossing_start, crossing_partner, crossing_along = _no_crossings(len(segments))
     return GridTables(segments=segments, references=references, offsets=offsets, cell_frames=frames,
                       cell_start=cell_start,
                       origin=(float(origin[0]), float(origin[1])), cell_size=float(h),
                       shape=(int(shape[0]), int(shape[1])), piece_count=len(segments), margin=margin,
-                      crossing_start=crossing_start, crossing_partner=crossing_partner)
+                      crossing_start=crossing_start, crossing_partner=crossing_partner,
+                      crossing_along=crossing_along)
 
 
 def _no_crossings(piece_count):
-    return empty_aligned_zeros(piece_count + 1), empty_aligned_zeros(2)
+    return empty_aligned_zeros(piece_count + 1), empty_aligned_zeros(2), empty_aligned_zeros(2).view(np.float32)
 
 
 def empty_aligned_zeros(count):
@@ -171,7 +174,8 @@ def _empty_tables() -> GridTables:
                       cell_frames=np.array([[0.0, 1.0, 0.0, 0.0]], dtype=np.float32),
                       cell_start=np.zeros(2, dtype=np.uint32), origin=(0.0, 0.0), cell_size=1.0,
                       shape=(1, 1), piece_count=0, margin=0.0,
-                      crossing_start=empty_aligned_zeros(2), crossing_partner=empty_aligned_zeros(2))
+                      crossing_start=empty_aligned_zeros(2), crossing_partner=empty_aligned_zeros(2),
+                      crossing_along=empty_aligned_zeros(2).view(np.float32))
 
 
 def _pieces(scratches: ScratchSet):
