@@ -124,6 +124,24 @@ def test05_reciprocal_and_invariant_under_the_uv_map():
     np.testing.assert_allclose(value, base, rtol=2e-3)
 
 
+def test05b_sampling_weights_are_eval_over_pdf():
+    """Sampling is the additive model's (the correction only changes eval): weights stay eval / pdf."""
+    bsdf = shading.load_bsdf(TWO + [ref.Scratch((-20, -3), (20, 4), 0.8, 0.15)], sigma_um=2.0, material="Al",
+                             crossings="height_field")
+    count = 4096
+    rng = np.random.default_rng(55)
+    si = shading.interaction(count, shading.direction(35, 10))
+    bs, weight = bsdf.sample(mi.BSDFContext(), si, shading.floats(rng.random(count)),
+                             mi.Point2f(shading.floats(rng.random(count)), shading.floats(rng.random(count))))
+    value, pdf = bsdf.eval_pdf(mi.BSDFContext(), si, bs.wo)
+    weight, value, pdf = (shading.spectrum_rows(x) for x in (weight, value, np.asarray(pdf)))
+    valid = np.asarray(bs.pdf) > 0
+    assert valid.mean() > 0.9
+    np.testing.assert_allclose(np.asarray(bs.pdf)[valid], pdf[valid], rtol=1e-4)
+    np.testing.assert_allclose(weight[valid], value[valid] / pdf[valid, None], rtol=1e-3,
+                               atol=1e-6 * np.abs(weight).max())
+
+
 def test06_another_crossing_count_reuses_the_compiled_kernels():
     """Crossing counts and lists are data: two sets evaluate through kernels of the same hashes."""
     wo = np.array([shading.direction(30, 40 + k) for k in range(64)])
