@@ -73,11 +73,8 @@ def find_crossings(a, b, signed_depth, references, cell_start, cell_normals):
     cells = np.flatnonzero(sizes > 1)
     if len(cells):
         # a cell whose pieces all run within MIN_SINE/2 of its direction holds no countable pair
-        cell_of = np.repeat(np.arange(len(sizes)), sizes)
-        deviation = np.abs(np.einsum("ij,ij->i", direction[references[:starts[-1]]], cell_normals[cell_of]))
-        spread = np.zeros(len(sizes))
-        np.maximum.at(spread, cell_of, deviation)
-        cells = cells[spread[cells] >= 0.5 * MIN_SINE]
+        cells = cells[_largest_deviation(cells, starts, sizes, references, direction, cell_normals)
+                      >= 0.5 * MIN_SINE]
     for group in _cell_groups(cells, sizes):
         first, second = _pairs_in_cells(group, starts, sizes, references)
         keep = rectangular[first] & rectangular[second] & (first != second)
@@ -97,6 +94,31 @@ def find_crossings(a, b, signed_depth, references, cell_start, cell_normals):
     crossing_along = np.zeros(len(partner), dtype=np.float32)
     crossing_along[:len(pairs)] = along
     return aligned(crossing_start), aligned(partner), aligned(crossing_along)
+
+
+def _largest_deviation(cells, starts, sizes, references, direction, cell_normals, block=1 << 22):
+    """Per cell of ``cells``, the largest |sin| between a listed piece and the cell's direction.
+
+    Blocks of cells of about ``block`` references bound the temporaries (the CD lists 20 million).
+    """
+    result = np.zeros(len(cells))
+    first = 0
+    while first < len(cells):
+        last = int(np.searchsorted(np.cumsum(sizes[cells[first:]]), block, side="right")) + first
+        last = min(max(last, first + 1), len(cells))
+        group = cells[first:last]
+        index, cell = _references_of(group, starts, sizes)
+        deviation = np.abs(np.einsum("ij,ij->i", direction[references[index]], cell_normals[group[cell]]))
+        result[first:last] = np.maximum.reduceat(deviation, np.r_[0, np.cumsum(sizes[group])[:-1]])
+        first = last
+    return result
+
+
+def _references_of(group, starts, sizes):
+    """Positions in ``references`` of the cells in ``group``, and which cell of the group each is."""
+    k = sizes[group]
+    cell = np.repeat(np.arange(len(group)), k)
+    return starts[group][cell] + (np.arange(len(cell)) - np.repeat(np.cumsum(k) - k, k)), cell
 
 
 def _cell_groups(cells, sizes):
