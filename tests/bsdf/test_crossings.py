@@ -200,3 +200,18 @@ def test08_dense_sets_are_exact_to_pairs_and_closer_than_the_additive_model(name
     for additive, height_field, pairwise in out.values():
         assert pairwise < TOLERANCE
         assert height_field < 0.5 * additive
+
+
+def test09_extreme_crossings_stay_finite():
+    """Grazing and mirror directions, an 80 µm wide 30 µm deep groove, a 1e-4 µm thin one, a 1 nm piece."""
+    scratches = TWO + [ref.Scratch((0, 0), (0.001, 0), 0.5, 0.2), ref.Scratch((-5, -5), (5, 5.0001), 80.0, 30.0),
+                       ref.Scratch((-5, 5), (5, -5), 1e-4, 0.1)]
+    bsdf = shading.load_bsdf(scratches, crossings="height_field", sigma_um=2.0)
+    assert "(7 pairs)" in str(bsdf)
+    rng = np.random.default_rng(9)
+    wo = np.array([shading.direction(t, p) for t, p in zip(rng.uniform(0, 90, 2000), rng.uniform(0, 360, 2000))]
+                  + [shading.direction(89.9, 180), shading.direction(0, 0)])
+    for wi in (shading.direction(89.9), shading.direction(0), shading.direction(45, 30)):
+        f = shading.eval_brdf(bsdf, wi, wo)
+        assert np.isfinite(f).all() and f.max() > 0
+    assert str(shading.load_bsdf([], crossings="height_field")).endswith("crossings=height_field (0 pairs)]")
