@@ -4,10 +4,11 @@ Importing this package imports neither Mitsuba nor Dr.Jit; the functions
 below do, and need an active variant (``mi.set_variant(...)``).
 
 Layout: pure Dr.Jit maths in :mod:`.complexmath`, :mod:`.faddeeva`,
-:mod:`.window`, :mod:`.profiles`, :mod:`.segment`, :mod:`.sampling`; the
+:mod:`.window`, :mod:`.profiles`, :mod:`.segment`, :mod:`.sampling`,
+:mod:`.overlap` (the height-field correction of a crossing pair); the
 numpy side in :mod:`.tables` (segment table, UV grid, cell size), :mod:`.references`
-(the grid's references to the pieces, sorted by offset) and :mod:`.memory`
-(in-memory parameters); the per-lane model in :mod:`.model` with the grid walk
+(the grid's references to the pieces, sorted by offset), :mod:`.crossings`
+(crossing pairs of pieces) and :mod:`.memory` (in-memory parameters); the per-lane model in :mod:`.model` with the grid walk
 of :mod:`.lookup`; and the thin ``mi.BSDF`` class in :mod:`.plugin`, whose
 docstring is the manual.
 """
