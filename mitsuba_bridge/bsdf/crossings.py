@@ -37,7 +37,7 @@ PAIR_BUDGET = 1 << 22
 
 
 def find_crossings(a, b, signed_depth, references, cell_start, cell_normals):
-    """``(crossing_start, crossing_partner)`` of the pieces ``a[i] → b[i]`` (UV, float64).
+    """``(crossing_start, crossing_partner, crossing_along)`` of the pieces ``a[i] → b[i]`` (UV, float64).
 
     Parameters
     ----------

@@ -8,11 +8,13 @@ has ``e^{iκ_max}``; the difference is ``-(e^{iκ_min} - 1)``, so
 
 P is the parallelogram of the two strips ``|n_k·x - a⊥_k| <= W_k/2``: centre
 ``p = (a⊥_1 d_2 - a⊥_2 d_1)/sin θ`` (sin θ = d_1 × d_2), edges
-``E_1 = W_1 d_2/sin θ`` and ``E_2 = W_2 d_1/sin θ``.  The window is expanded
-about p: its value and slope exactly (a complex frequency
-``ζ = ξ - i p/(2πσ²)``), its curvature by its mean over P, so
+``E_1 = W_1 d_2/sin θ`` and ``E_2 = W_2 d_1/sin θ``.  Its windowed transform
+is not separable, so P is cut into n_1 × n_2 sub-parallelograms with edges of
+at most σ/2 (at most MAX_SPLIT per edge); over each (centre c, edges E_1/n_1,
+E_2/n_2, written E below) the window is expanded: its value and slope exactly
+(a complex frequency ``ζ = ξ - i c/(2πσ²)``), its curvature by its mean, so
 
-    ∫_P w e^{-2πiξ·x} ≈ w(p) e^{-2πiξ·p} e^{-(|E_1|² + |E_2|²)/(24σ²)} |E_1 × E_2| sinc(ζ·E_1) sinc(ζ·E_2)
+    ∫ w e^{-2πiξ·x} ≈ w(c) e^{-2πiξ·c} e^{-(|E_1|² + |E_2|²)/(24σ²)} |E_1 × E_2| sinc(ζ·E_1) sinc(ζ·E_2)
 
 with the normalised sinc of a complex argument.  Lengths in µm.
 """
@@ -33,7 +35,7 @@ _SERIES_BELOW = 1e-4
 #: The overlap is cut into n_1 × n_2 sub-parallelograms with edges at most this many σ long, each with
 #: its own window expansion: the neglected curvature then stays below ~1 % (docs/model.md §3.4).
 SUB_EDGE_SIGMAS = 0.5
-#: ... and at most this many along each edge (a crossing at |sin θ| = 0.1 of W = 5σ/16 stays exact).
+#: ... and at most this many along each edge (longer edges get longer cells: at |sin θ| = 0.1, from W = 0.4σ).
 MAX_SPLIT = 8
 
 
