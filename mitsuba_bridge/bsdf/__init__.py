@@ -4,16 +4,18 @@ Importing this package imports neither Mitsuba nor Dr.Jit; the functions
 below do, and need an active variant (``mi.set_variant(...)``).
 
 Layout: pure Dr.Jit maths in :mod:`.complexmath`, :mod:`.faddeeva`,
-:mod:`.window`, :mod:`.profiles`, :mod:`.segment`, :mod:`.sampling`; the
+:mod:`.window`, :mod:`.profiles`, :mod:`.segment`, :mod:`.sampling`,
+:mod:`.overlap` (the height-field correction of a crossing pair); the
 numpy side in :mod:`.tables` (segment table, UV grid, cell size), :mod:`.references`
-(the grid's references to the pieces, sorted by offset) and :mod:`.memory`
-(in-memory parameters); the per-lane model in :mod:`.model` with the grid walk
+(the grid's references to the pieces, sorted by offset), :mod:`.crossings`
+(crossing pairs of pieces) and :mod:`.memory` (in-memory parameters); the per-lane model in :mod:`.model` with the grid walk
 of :mod:`.lookup`; and the thin ``mi.BSDF`` class in :mod:`.plugin`, whose
 docstring is the manual.
 """
 from __future__ import annotations
 
-from .parameters import DEFAULT_COHERENCE_DIAMETER_M, DEFAULT_DEPTH_PHASE, DEFAULT_MATERIAL, PLUGIN_NAME
+from .parameters import (DEFAULT_COHERENCE_DIAMETER_M, DEFAULT_CROSSINGS, DEFAULT_DEPTH_PHASE, DEFAULT_MATERIAL,
+                         PLUGIN_NAME)
 
 __all__ = ["register", "plugin_dict", "load", "scratch_parameters", "update_scratches", "PLUGIN_NAME"]
 
@@ -30,7 +32,7 @@ def register() -> None:
 
 def plugin_dict(scratches=None, *, filename=None, coherence_diameter=DEFAULT_COHERENCE_DIAMETER_M,
                 unit_scale=1.0, material=DEFAULT_MATERIAL, eta=None, k=None, diffuse_reflectance=None,
-                coherent=True, depth_phase=DEFAULT_DEPTH_PHASE) -> dict:
+                coherent=True, depth_phase=DEFAULT_DEPTH_PHASE, crossings=DEFAULT_CROSSINGS) -> dict:
     """The ``mi.load_dict`` dictionary of a ``scratch_diffraction`` BSDF.
 
     Parameters
@@ -57,6 +59,10 @@ def plugin_dict(scratches=None, *, filename=None, coherence_diameter=DEFAULT_COH
         ``"kirchhoff"`` (the paper's phase 2π(γ_i + γ_o)d/λ) or ``"incidence"``
         (4πγ_i d/λ: energy-conserving, not reciprocal; docs/bsdf.md, Energy).
         Written to the dictionary only when not the default.
+    crossings : str
+        ``"additive"`` (the paper's sum of transfer functions) or
+        ``"height_field"`` (crossings of rectangular scratches take the deeper
+        depth, docs/model.md §3.4).  Written only when not the default.
 
     Needs an active Mitsuba variant (the tensors belong to it).
     """
@@ -68,6 +74,8 @@ def plugin_dict(scratches=None, *, filename=None, coherence_diameter=DEFAULT_COH
               "unit_scale": float(unit_scale), "coherent": bool(coherent)}
     if depth_phase != DEFAULT_DEPTH_PHASE:
         result["depth_phase"] = str(depth_phase)
+    if crossings != DEFAULT_CROSSINGS:
+        result["crossings"] = str(crossings)
     if eta is not None:
         result["eta"], result["k"] = _spectrum(eta), _spectrum(k)
     else:

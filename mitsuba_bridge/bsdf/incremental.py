@@ -27,7 +27,7 @@ import numpy as np
 
 from ..scratch import ScratchSet
 from .references import CHUNK, cell_references, doubled_angles, empty_aligned, normals, offsets_in_cell
-from .tables import GridTables, _cells, _pieces, _reference_limit, _segment_rows, build_sorted
+from .tables import GridTables, _cells, _no_crossings, _pieces, _reference_limit, _segment_rows, build_sorted
 
 __all__ = ["TableCache", "update_tables", "MAX_CACHED_PIECES"]
 
@@ -48,7 +48,8 @@ class TableCache:
     incremental: bool = False  #: whether this build extended the previous one (for tests and statistics)
 
 
-def update_tables(previous: TableCache | None, scratches: ScratchSet, cell_size: float = 0.0) -> TableCache:
+def update_tables(previous: TableCache | None, scratches: ScratchSet, cell_size: float = 0.0, *,
+                  crossings: bool = False) -> TableCache:
     """Tables of ``scratches``, extending ``previous`` where ``scratches`` only appends to its set.
 
     Parameters
@@ -58,6 +59,9 @@ def update_tables(previous: TableCache | None, scratches: ScratchSet, cell_size:
     scratches : ScratchSet
     cell_size : float
         The BSDF's cell-size hint (0: automatic), as for :func:`.tables.build_tables`.
+    crossings : bool
+        List crossing pairs (``crossings = "height_field"``): every update is then a full build,
+        since the pairs of the appended pieces are not merged incrementally.
 
     Returns
     -------
@@ -65,6 +69,9 @@ def update_tables(previous: TableCache | None, scratches: ScratchSet, cell_size:
         ``.tables`` equals ``build_tables(scratches, c)`` where ``c`` is ``cell_size``, or, after
         appended scratches under an automatic hint, the cell size of ``previous``.
     """
+    if crossings:
+        tables, _, _ = build_sorted(scratches, cell_size, crossings=True)
+        return TableCache(scratches, tables, None, None, cell_size)
     if (previous is None or previous.a is None or previous.cell_size_hint != cell_size
             or not _appends(previous.scratches, scratches)):
         return _full(scratches, cell_size, cell_size)
@@ -177,9 +184,11 @@ def _extend(previous: TableCache, scratches: ScratchSet) -> TableCache | None:
     cell_start = empty_aligned(cell_count + 1, np.uint32)
     cell_start[0] = 0
     np.cumsum(np.bincount(all_cells, minlength=cell_count), out=cell_start[1:])
+    crossing_start, crossing_partner, crossing_along = _no_crossings(n_old + n_new)
     tables = GridTables(segments=segments, references=references, offsets=offsets, cell_frames=frames,
                         cell_start=cell_start, origin=old.origin, cell_size=h, shape=old.shape,
-                        piece_count=n_old + n_new, margin=margin)
+                        piece_count=n_old + n_new, margin=margin, crossing_start=crossing_start,
+                        crossing_partner=crossing_partner, crossing_along=crossing_along)
     if len(a) > MAX_CACHED_PIECES:
         a = b = None
     return TableCache(scratches, tables, a, b, previous.cell_size_hint, True)

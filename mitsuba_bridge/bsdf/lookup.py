@@ -21,7 +21,7 @@ import mitsuba as mi
 from .segment import SegmentGeometry
 from .tables import GridTables, aligned
 
-__all__ = ["Grid", "LocalJacobian", "for_each_segment", "jacobian", "segment_at"]
+__all__ = ["Grid", "LocalJacobian", "for_each_segment", "for_each_crossing", "jacobian", "segment_at"]
 
 #: Cells with more references than this are bisected by offset; shorter ones are scanned.
 BISECT_ABOVE = 6
@@ -42,6 +42,9 @@ class Grid:
     margin: object  #: query padding (cells): the tables' dilation
     cells_u: object  #: opaque mi.Int32 scalars
     cells_v: object
+    crossing_start: object = None  #: mi.UInt32, CSR starts of each piece's crossing partners
+    crossing_partner: object = None  #: mi.UInt32
+    crossing_along: object = None  #: mi.Float, each crossing's parameter along its lower piece
 
     @classmethod
     def upload(cls, tables: GridTables) -> "Grid":
@@ -56,7 +59,10 @@ class Grid:
             inverse_cell_size=dr.opaque(mi.Float, 1.0 / tables.cell_size),
             margin=dr.opaque(mi.Float, tables.margin),
             cells_u=dr.opaque(mi.Int32, tables.shape[0]),
-            cells_v=dr.opaque(mi.Int32, tables.shape[1]))
+            cells_v=dr.opaque(mi.Int32, tables.shape[1]),
+            crossing_start=_owned(mi.UInt32, tables.crossing_start),
+            crossing_partner=_owned(mi.UInt32, tables.crossing_partner),
+            crossing_along=_owned(mi.Float, tables.crossing_along))
 
 
 def _owned(kind, array):
@@ -204,6 +210,42 @@ def for_each_segment(grid: Grid, jac: LocalJacobian, radius, state: tuple,
                          lambda u, v, index, end, search_end, searching, lo_key, hi_key, user:
                              more(u, v, index, end),
                          visit, label="scratch_pieces")[8]
+
+
+def for_each_crossing(grid: Grid, jac: LocalJacobian, piece, segment: SegmentGeometry, radius, state: tuple,
+                      body: Callable) -> tuple:
+    """Fold ``body(partner: SegmentGeometry, state) -> state`` over the crossings of ``piece`` within ``radius``.
+
+    The pairs are listed once, under the piece of lower index (:mod:`.crossings`),
+    so folding this over every piece found by :func:`for_each_segment` visits
+    each crossing pair whose crossing point lies within ``radius`` of x0 once
+    (that point lies on the lower piece, which then passes within the radius).
+    A piece's crossings are sorted by their parameter t along it, and a crossing
+    lies at ``c + t L`` from x0's foot point: a bisection finds the first one
+    inside the window, the scan stops after the last.
+    """
+    first = dr.gather(mi.UInt32, grid.crossing_start, piece)
+    last = dr.gather(mi.UInt32, grid.crossing_start, piece + 1)
+    half_chord = dr.safe_sqrt(radius * radius - segment.a_perp * segment.a_perp)
+    inv_length = dr.rcp(dr.maximum(segment.length, 1e-6))
+    t_lo = (-segment.c - half_chord) * inv_length
+    t_hi = (-segment.c + half_chord) * inv_length
+
+    def bisect(lo, hi):
+        middle = (lo + hi) >> 1
+        right = dr.gather(mi.Float, grid.crossing_along, middle) < t_lo
+        return dr.select(right, middle + 1, lo), dr.select(right, hi, middle)
+
+    start = dr.while_loop((first, last), lambda lo, hi: lo < hi, bisect, label="scratch_crossing_search")[0]
+
+    def inside(index, user):
+        return (index < last) & (dr.gather(mi.Float, grid.crossing_along, index, index < last) <= t_hi)
+
+    def step(index, user):
+        partner = dr.gather(mi.UInt32, grid.crossing_partner, index)
+        return index + 1, body(segment_at(grid, jac, partner, True), user)
+
+    return dr.while_loop((start, state), inside, step, label="scratch_crossings")[1]
 
 
 def segment_at(grid: Grid, jac: LocalJacobian, piece, active) -> SegmentGeometry:

@@ -19,7 +19,8 @@ import mitsuba as mi
 from . import sampling
 from .complexmath import Cx
 from .fresnel import fresnel_conductor
-from .lookup import Grid, for_each_segment, jacobian, segment_at
+from .lookup import Grid, for_each_crossing, for_each_segment, jacobian, segment_at
+from .overlap import crossing_correction
 from .segment import amplitude, frequencies
 from .window import mirror_lobe
 
@@ -45,6 +46,8 @@ class Model:
     k: object = None
     diffuse: object = None  #: mi.Texture or None
     depth_phase: str = "kirchhoff"  #: or "incidence" (docs/bsdf.md, Energy)
+    #: correct crossings of rectangular pieces to the height field (docs/model.md §3.4; coherent mode)
+    height_field: bool = False
 
     # ------------------------------------------------------------- pieces
     def _reflectance(self, si, cos_theta, active):
@@ -106,6 +109,13 @@ class Model:
                 s = amplitude(segment, xi_x, xi_y, k_z, sigma, coherent=coherent)
                 if coherent:
                     a, b = spectrum(a + s.re), spectrum(b + s.im)
+                    if self.height_field:
+                        def add_crossing(partner, field):
+                            c = crossing_correction(segment, partner, xi_x, xi_y, k_z, sigma)
+                            return spectrum(field[0] + c.re), spectrum(field[1] + c.im)
+
+                        a, b = for_each_crossing(self.grid, jac, piece, segment, WINDOW_RADIUS_SIGMAS * sigma, (a, b),
+                                                 add_crossing)
                 else:
                     a, b = spectrum(a + s.abs2()), b + sampling.window_energy(segment, sigma)
             if want_pdf and has_glossy:

@@ -28,3 +28,7 @@ BASE_MATERIALS = (
 #: Depth phase per unit depth: "kirchhoff" 2π(γ_i + γ_o)/λ (docs/model.md §2) or "incidence" 4πγ_i/λ.
 DEFAULT_DEPTH_PHASE = "kirchhoff"
 DEPTH_PHASES = ("kirchhoff", "incidence")
+#: Where rectangular scratches cross: "additive" sums their transfer functions (the paper, docs/model.md §2),
+#: "height_field" gives the overlap the deeper one's depth (docs/model.md §3.4).
+DEFAULT_CROSSINGS = "additive"
+CROSSINGS = ("additive", "height_field")

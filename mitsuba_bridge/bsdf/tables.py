@@ -54,6 +54,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..scratch import Profile, ScratchSet, subdivide
+from .crossings import find_crossings
 from .references import (CHUNK, aligned, cell_references, doubled_angles, empty_aligned, expand, normals,
                          offsets_in_cell, sorted_references)
 
@@ -97,14 +98,23 @@ class GridTables:
     shape: tuple[int, int]  #: (nu, nv) cells along u and v
     piece_count: int  #: real pieces (the table is padded to at least one row)
     margin: float  #: query padding and piece dilation, in cells
+    #: (N + 1,) uint32 CSR starts of each piece's crossing partners (all zero: no crossings listed)
+    crossing_start: np.ndarray = None
+    crossing_partner: np.ndarray = None  #: uint32 partner pieces, padded to at least two entries
+    crossing_along: np.ndarray = None  #: float32 parameter of each crossing along its lower piece
+
+    @property
+    def crossing_count(self) -> int:
+        return int(self.crossing_start[-1])
 
     @property
     def nbytes(self) -> int:
         return sum(x.nbytes for x in (self.segments, self.references, self.offsets, self.cell_frames,
-                                      self.cell_start))
+                                      self.cell_start, self.crossing_start, self.crossing_partner,
+                                      self.crossing_along))
 
 
-def build_tables(scratches: ScratchSet, cell_size: float = 0.0) -> GridTables:
+def build_tables(scratches: ScratchSet, cell_size: float = 0.0, crossings: bool = False) -> GridTables:
     """Segment table, references and grid of ``scratches``.
 
     Parameters
@@ -113,11 +123,13 @@ def build_tables(scratches: ScratchSet, cell_size: float = 0.0) -> GridTables:
         Grid cell size in UV units; 0 chooses it from the scratch density
         (rounded up to a power of two either way, and never so small that the
         grid exceeds ``MAX_CELLS`` cells or ``MAX_REFERENCES`` references).
+    crossings:
+        List the crossing pairs of rectangular pieces (``crossings = "height_field"``).
     """
-    return build_sorted(scratches, cell_size)[0]
+    return build_sorted(scratches, cell_size, crossings)[0]
 
 
-def build_sorted(scratches: ScratchSet, cell_size: float = 0.0):
+def build_sorted(scratches: ScratchSet, cell_size: float = 0.0, crossings: bool = False):
     """:func:`build_tables` and the pieces' float64 ends ``(a, b)`` in the table's row order.
 
     For :mod:`.incremental`, which extends a build by appended scratches.
@@ -141,10 +153,27 @@ def build_sorted(scratches: ScratchSet, cell_size: float = 0.0):
     segments = _segment_rows(a, b, width, depth)
     del width, depth, order
     references, offsets, frames, cell_start = sorted_references(a, b, h, origin, shape, margin)
+    if crossings:
+        crossing_start, crossing_partner, crossing_along = find_crossings(
+            a, b, segments[:, 7], references, cell_start, frames[:, 0:2].astype(np.float64))
+    else:
+        crossing_start, crossing_partner, crossing_along = _no_crossings(len(segments))
     return GridTables(segments=segments, references=references, offsets=offsets, cell_frames=frames,
                       cell_start=cell_start,
                       origin=(float(origin[0]), float(origin[1])), cell_size=float(h),
-                      shape=(int(shape[0]), int(shape[1])), piece_count=len(segments), margin=margin), a, b
+                      shape=(int(shape[0]), int(shape[1])), piece_count=len(segments), margin=margin,
+                      crossing_start=crossing_start, crossing_partner=crossing_partner,
+                      crossing_along=crossing_along), a, b
+
+
+def _no_crossings(piece_count):
+    return empty_aligned_zeros(piece_count + 1), empty_aligned_zeros(2), empty_aligned_zeros(2).view(np.float32)
+
+
+def empty_aligned_zeros(count):
+    array = empty_aligned(count, np.uint32)
+    array[...] = 0
+    return array
 
 
 # --------------------------------------------------------------- internals
@@ -154,7 +183,9 @@ def _empty_tables() -> GridTables:
                       references=np.zeros(1, dtype=np.uint32), offsets=np.zeros(1, dtype=np.float32),
                       cell_frames=np.array([[0.0, 1.0, 0.0, 0.0]], dtype=np.float32),
                       cell_start=np.zeros(2, dtype=np.uint32), origin=(0.0, 0.0), cell_size=1.0,
-                      shape=(1, 1), piece_count=0, margin=0.0)
+                      shape=(1, 1), piece_count=0, margin=0.0,
+                      crossing_start=empty_aligned_zeros(2), crossing_partner=empty_aligned_zeros(2),
+                      crossing_along=empty_aligned_zeros(2).view(np.float32))
 
 
 def _pieces(scratches: ScratchSet):

@@ -15,7 +15,14 @@ Dense sets (issue 12): ``--dense`` adds the time per query on the paper's CD
 orientation, as wall time per lane (all cores) and as a ratio to
 ``roughconductor.eval`` measured in the same run (the machine is shared).
 
-Run: ``.venv/bin/python tests/bench/bench_bsdf.py [--dense]``.
+Crossings (issue 12 item 1): ``--crossings`` times ``eval`` with ``crossings =
+"additive"`` and ``"height_field"`` on the Fig. 7(b) plate (3 000 scratches,
+G_W[4, 1.3] µm on a 10 cm plate) and on a worn plate (30 000 scratches,
+U_W[0.5, 6] µm), at shading points on the scratches (every lane has pieces in
+its window), alternately, as the ratio of the two; with the table build time
+and the number of crossing pairs.
+
+Run: ``.venv/bin/python tests/bench/bench_bsdf.py [--dense] [--crossings]``.
 """
 from __future__ import annotations
 
@@ -35,6 +42,7 @@ def main():
     parser.add_argument("--segments", type=int, nargs="*", default=[0, 1, 4, 16])
     parser.add_argument("--dense", action="store_true", help="also time queries on the CD and the grating")
     parser.add_argument("--dense-lanes", type=int, default=1 << 17)
+    parser.add_argument("--crossings", action="store_true", help="time crossings = height_field against additive")
     args = parser.parse_args()
 
     import drjit as dr
@@ -110,6 +118,8 @@ def main():
 
     if args.dense:
         dense_sets(args, rng)
+    if args.crossings:
+        crossing_sets(args, rng)
 
     conductor = references["conductor (Al, delta)"]
     rough = references["roughconductor (Al, GGX 0.1)"]
@@ -194,6 +204,58 @@ def dense_sets(args, rng):
     for name, query, reference in (("CD", cd_query, cd_rough), ("grating", grating_query, grating_rough)):
         print(f"  {name:8s} {query * 1e9:8.0f} ns  = {query / reference:6.1f} x roughconductor.eval "
               f"({reference * 1e9:.1f} ns)")
+
+
+def crossing_sets(args, rng):
+    """``eval`` with the height-field crossing correction against the additive model, same lanes."""
+    import drjit as dr
+    import mitsuba as mi
+
+    from scratch_iridescence.mitsuba_bridge import bsdf as scratch_bsdf
+    from scratch_iridescence.mitsuba_bridge import scratch
+
+    n = args.dense_lanes
+    plate_m = 0.10
+    sets = {
+        "Fig. 7(b) plate, 3 000": scratch.random_scratches(
+            3000, seed=7, width=scratch.Gaussian(4e-6, 1.3e-6), depth=scratch.Gaussian(250e-9, 80e-9),
+            depth_variation=(1.1, 0.04), region=((0.2, 0.2), (0.6, 0.6))),
+        "worn plate, 30 000": scratch.random_scratches(
+            30000, seed=8, width=scratch.Uniform(0.5e-6, 6e-6), depth=scratch.Uniform(0.1e-6, 1e-6),
+            region=((0.2, 0.2), (0.6, 0.6))),
+    }
+    print(f"\ncrossings: time per eval query, {n} lanes on the scratches, best of {args.repeat}, alternately")
+    for name, scratches in sets.items():
+        loaded, seconds = {}, {}
+        for mode in ("additive", "height_field"):
+            start = time.perf_counter()
+            loaded[mode] = mi.load_dict(scratch_bsdf.plugin_dict(scratches, unit_scale=plate_m, crossings=mode))
+            seconds[mode] = time.perf_counter() - start
+        tables = loaded["height_field"].tables
+        pieces = tables.segments[rng.integers(0, tables.piece_count, n)].astype(np.float64)
+        point = pieces[:, 0:2] + pieces[:, 2:4] + rng.random(n)[:, None] * pieces[:, 4:6]
+        si = dr.zeros(mi.SurfaceInteraction3f, n)
+        si.uv = mi.Point2f(mi.Float(point[:, 0]), mi.Float(point[:, 1]))
+        si.dp_du, si.dp_dv = mi.Vector3f(1, 0, 0), mi.Vector3f(0, 1, 0)
+        si.n = mi.Normal3f(0, 0, 1)
+        si.sh_frame = mi.Frame3f(mi.Vector3f(0, 0, 1))
+        si.wi = mi.warp.square_to_cosine_hemisphere(mi.Point2f(mi.Float(rng.random(n)), mi.Float(rng.random(n))))
+        si.wavelengths = mi.Spectrum(*(mi.Float(rng.uniform(360, 830, n)) for _ in range(4)))
+        wo = mi.warp.square_to_cosine_hemisphere(mi.Point2f(mi.Float(rng.random(n)), mi.Float(rng.random(n))))
+        dr.eval(si, wo)
+        ctx = mi.BSDFContext()
+        best = {mode: float("inf") for mode in loaded}
+        for i in range(args.repeat + 1):
+            for mode, bsdf in loaded.items():
+                start = time.perf_counter()
+                dr.eval(bsdf.eval(ctx, si, wo))
+                dr.sync_thread()
+                if i:
+                    best[mode] = min(best[mode], time.perf_counter() - start)
+        print(f"  {name:24s} {tables.crossing_count:7d} pairs ({tables.piece_count} pieces); load "
+              f"{seconds['additive']:.2f} s / {seconds['height_field']:.2f} s; eval "
+              f"{best['additive'] / n * 1e9:6.0f} ns / {best['height_field'] / n * 1e9:6.0f} ns per query "
+              f"= {best['height_field'] / best['additive']:.2f} x")
 
 
 if __name__ == "__main__":

@@ -45,5 +45,8 @@ def test03_plugin_matches_the_height_field_without_crossings_and_differs_with_th
     assert all(e["all"] < 1e-3 for e in single["plugin_vs_height_field"].values())
     assert all(e["all"] < 1e-3 for e in ten["plugin_vs_summed_raster"].values())  # the model's sum, exactly
     assert all(e["off_lobe"] > 0.1 for e in ten["plugin_vs_height_field"].values())  # crossings: its limitation
+    corrected = ten["height_field_plugin_vs_height_field"]  # crossings = "height_field" (docs/model.md §3.4)
+    assert all(corrected[k]["off_lobe"] < 0.5 * e["off_lobe"] for k, e in ten["plugin_vs_height_field"].items())
+    assert all(e["all"] < 1e-3 for e in single["height_field_plugin_vs_height_field"].values())
     assert set(results["single_convergence_550nm"]) == {"80 nm", "40 nm"}
     assert (tmp_path / "validation.png").stat().st_size > 10_000 and (tmp_path / "validation.json").exists()

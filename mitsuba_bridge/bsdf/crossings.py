@@ -1,0 +1,173 @@
+"""Crossing pairs of straight pieces, for the height-field correction (numpy only; docs/model.md §3.4).
+
+Where two rectangular scratches cross, the paper's sum of transfer functions
+counts both depths; the true height field has the deeper one's.  The kernel
+(:mod:`.overlap`) adds one correction per crossing pair inside the window, so
+the tables list, per piece, the pieces it crosses (CSR: ``crossing_start``,
+``crossing_partner``), each pair once, under the piece of lower index.
+
+A pair counts when the two **centre lines intersect inside both pieces**
+(parameters in [0, 1): a crossing at a polyline vertex belongs to the piece
+starting there, so it is found once).  Intersection parameters are invariant
+under the linear UV → tangent-plane map, so this test is exact in UV whatever
+the mesh's Jacobian.  Candidates are the pieces listed together in a cell of
+the lookup grid (both pieces are listed in the cell of their crossing point).
+Left out (their overlap stays additive, docs/model.md §3.4):
+
+* pairs with a V-groove (the overlap's depth is not one value);
+* nearly parallel pairs, ``|sin θ| < MIN_SINE`` (measured in UV): their
+  overlap is a long sliver whose shape the piece ends decide;
+* consecutive pieces of one polyline (they share an end point);
+* cells whose pieces all lie within ``MIN_SINE / 2`` of the cell's dominant
+  direction (a CD's tracks, a grating: no pair there can count), so dense
+  parallel sets cost nothing.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .references import aligned
+
+__all__ = ["find_crossings", "MIN_SINE", "PAIR_BUDGET"]
+
+#: Smallest |sin θ| between two crossing pieces that gets the correction (about 5.7°).
+MIN_SINE = 0.1
+#: Candidate pairs examined at a time (bounds the temporaries).
+PAIR_BUDGET = 1 << 22
+
+
+def find_crossings(a, b, signed_depth, references, cell_start, cell_normals):
+    """``(crossing_start, crossing_partner, crossing_along)`` of the pieces ``a[i] → b[i]`` (UV, float64).
+
+    Parameters
+    ----------
+    a, b:
+        (N, 2) start and end points of the pieces, in table order.
+    signed_depth:
+        (N,) depth in µm, negative for V-grooves (as in the segment table).
+    references, cell_start:
+        The lookup grid's references (piece indices grouped by cell) and CSR starts.
+    cell_normals:
+        (cells, 2) unit normal of each cell's dominant direction.
+
+    Returns
+    -------
+    crossing_start:
+        (N + 1,) uint32; the partners of piece ``i`` are
+        ``crossing_partner[crossing_start[i]:crossing_start[i + 1]]``.
+    crossing_partner:
+        (max(M, 2),) uint32, padded with zeros (the kernel gathers from it, see below).
+    crossing_along:
+        (max(M, 2),) float32: where the crossing lies along the lower piece (parameter in [0, 1)),
+        ascending per piece, so that the kernel bisects for the crossings inside the window.
+    """
+    count = len(a)
+    e = b - a
+    length = np.maximum(np.hypot(e[:, 0], e[:, 1]), 1e-300)
+    direction = e / length[:, None]
+    rectangular = signed_depth > 0
+    pairs = [np.zeros((0, 2), dtype=np.int64)]
+
+    starts = cell_start.astype(np.int64)
+    sizes = np.diff(starts)
+    cells = np.flatnonzero(sizes > 1)
+    if len(cells):
+        # a cell whose pieces all run within MIN_SINE/2 of its direction holds no countable pair
+        cells = cells[_largest_deviation(cells, starts, sizes, references, direction, cell_normals)
+                      >= 0.5 * MIN_SINE]
+    for group in _cell_groups(cells, sizes):
+        first, second = _pairs_in_cells(group, starts, sizes, references)
+        keep = rectangular[first] & rectangular[second] & (first != second)
+        first, second = first[keep], second[keep]
+        found = _crossing(a, e, direction, first, second)
+        pairs.append(np.stack([np.minimum(first, second), np.maximum(first, second)], axis=1)[found])
+    pairs = np.unique(np.concatenate(pairs), axis=0)  # a pair may share two (dilated) cells
+    along = _parameters(a, e, pairs[:, 0], pairs[:, 1])
+    order = np.lexsort((along, pairs[:, 0]))  # by piece, then along it: the kernel bisects
+    pairs, along = pairs[order], along[order].astype(np.float32)
+    crossing_start = np.zeros(count + 1, dtype=np.uint32)
+    np.cumsum(np.bincount(pairs[:, 0], minlength=count), out=crossing_start[1:])
+    # padded to two entries: Dr.Jit turns a gather from a one-element array into a broadcast, which
+    # would compile a different kernel for a set with exactly one pair
+    partner = np.zeros(max(len(pairs), 2), dtype=np.uint32)
+    partner[:len(pairs)] = pairs[:, 1]
+    crossing_along = np.zeros(len(partner), dtype=np.float32)
+    crossing_along[:len(pairs)] = along
+    return aligned(crossing_start), aligned(partner), aligned(crossing_along)
+
+
+def _largest_deviation(cells, starts, sizes, references, direction, cell_normals, block=1 << 22):
+    """Per cell of ``cells``, the largest |sin| between a listed piece and the cell's direction.
+
+    Blocks of cells of about ``block`` references bound the temporaries (the CD lists 20 million).
+    """
+    result = np.zeros(len(cells))
+    first = 0
+    while first < len(cells):
+        last = int(np.searchsorted(np.cumsum(sizes[cells[first:]]), block, side="right")) + first
+        last = min(max(last, first + 1), len(cells))
+        group = cells[first:last]
+        index, cell = _references_of(group, starts, sizes)
+        deviation = np.abs(np.einsum("ij,ij->i", direction[references[index]], cell_normals[group[cell]]))
+        result[first:last] = np.maximum.reduceat(deviation, np.r_[0, np.cumsum(sizes[group])[:-1]])
+        first = last
+    return result
+
+
+def _references_of(group, starts, sizes):
+    """Positions in ``references`` of the cells in ``group``, and which cell of the group each is."""
+    k = sizes[group]
+    cell = np.repeat(np.arange(len(group)), k)
+    return starts[group][cell] + (np.arange(len(cell)) - np.repeat(np.cumsum(k) - k, k)), cell
+
+
+def _cell_groups(cells, sizes):
+    """Split ``cells`` into groups whose candidate pairs fit in PAIR_BUDGET."""
+    work = sizes[cells].astype(np.int64) ** 2
+    total = np.cumsum(work)
+    start = 0
+    while start < len(cells):
+        base = total[start - 1] if start else 0
+        stop = max(int(np.searchsorted(total, base + PAIR_BUDGET, side="right")), start + 1)
+        yield cells[start:stop]
+        start = stop
+
+
+def _pairs_in_cells(cells, starts, sizes, references):
+    """All ordered pairs (i, j), i before j, of the references of each cell in ``cells``."""
+    k = sizes[cells]
+    per_cell = k * k
+    owner = np.repeat(np.arange(len(cells)), per_cell)
+    flat = np.arange(len(owner)) - np.repeat(np.cumsum(per_cell) - per_cell, per_cell)
+    row, col = np.divmod(flat, k[owner])
+    upper = row < col
+    owner, row, col = owner[upper], row[upper], col[upper]
+    base = starts[cells][owner]
+    return references[base + row].astype(np.int64), references[base + col].astype(np.int64)
+
+
+def _parameters(a, e, first, second):
+    """Parameter along ``first`` of the intersection of the centre lines of ``first`` and ``second``."""
+    cross = e[first, 0] * e[second, 1] - e[first, 1] * e[second, 0]
+    gap = a[second] - a[first]
+    safe = np.where(cross != 0.0, cross, 1.0)
+    return (gap[:, 0] * e[second, 1] - gap[:, 1] * e[second, 0]) / safe
+
+
+def _crossing(a, e, direction, first, second):
+    """Whether the centre lines of the pieces cross inside both (parameters in [0, 1)), not nearly parallel."""
+    cross = e[first, 0] * e[second, 1] - e[first, 1] * e[second, 0]
+    sine = direction[first, 0] * direction[second, 1] - direction[first, 1] * direction[second, 0]
+    usable = np.abs(sine) >= MIN_SINE
+    safe = np.where(usable, cross, 1.0)
+    gap = a[second] - a[first]
+    t_first = (gap[:, 0] * e[second, 1] - gap[:, 1] * e[second, 0]) / safe
+    t_second = (gap[:, 0] * e[first, 1] - gap[:, 1] * e[first, 0]) / safe
+    inside = (t_first >= 0.0) & (t_first < 1.0) & (t_second >= 0.0) & (t_second < 1.0)
+    # consecutive pieces of a polyline meet at an end of both (up to rounding): not a crossing
+    shared_vertex = _near_end(t_first) & _near_end(t_second)
+    return usable & inside & ~shared_vertex
+
+
+def _near_end(t, tolerance=1e-9):
+    return (t < tolerance) | (t > 1.0 - tolerance)

@@ -1,0 +1,40 @@
+"""Validation table of ``crossings = "height_field"`` (docs/bsdf.md, Crossings): relative L2 error of f_r
+against the brute-force height field for the crossing sets of tests/bsdf/test_crossings.py, worst over
+450/550/650 nm × incidence 0/40/70°, for the additive model and the height-field correction, and the
+correction against the pairwise inclusion–exclusion of the same raster (what it implements exactly).
+
+    .venv/bin/python tests/bench/bench_crossings.py
+"""
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bsdf"))
+
+import mitsuba as mi  # noqa: E402
+
+mi.set_variant("llvm_ad_spectral")
+
+from scratch_iridescence import mitsuba_bridge  # noqa: E402
+
+mitsuba_bridge.register_plugins()
+
+import test_crossings as tc  # noqa: E402
+
+
+def main():
+    print("| set | crossing share | triple share | additive | height field | height field vs pairwise raster |")
+    print("|---|---|---|---|---|---|")
+    for name, scratches, sigma in tc.VALIDATED + tc.DENSE:
+        started = time.perf_counter()
+        raster, out = tc.errors(scratches, sigma, 0.02, tc.ALL_COMBOS)
+        worst = [max(v[i] for v in out.values()) for i in range(3)]
+        print(f"| {name} | {100 * raster.share:.1f} % | {100 * raster.triple_share:.2f} % | "
+              f"{100 * worst[0]:.1f} % | {100 * worst[1]:.2f} % | {100 * worst[2]:.2f} % |"
+              f"  ({time.perf_counter() - started:.0f} s)", flush=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,217 @@
+"""``crossings = "height_field"``: crossing pairs and the parallelogram correction (docs/model.md §3.4).
+
+Against the brute-force height field of one global raster (the deeper scratch
+owns a crossing): pairs of crossing scratches are exact to the raster's
+precision; sets with triple overlaps are exact to the pairwise inclusion–
+exclusion of the same raster and differ from the height field by the triple
+overlaps (the documented limitation, bounded by their share).
+"""
+from __future__ import annotations
+
+import drjit as dr
+import mitsuba as mi
+import numpy as np
+import pytest
+
+from scratch_iridescence.mitsuba_bridge.bsdf import crossings, probe, tables
+from scratch_iridescence.mitsuba_bridge.bsdf import reference as ref
+from scratch_iridescence.mitsuba_bridge.scratch import Profile, ScratchSet
+import crossing_sets as cs
+import shading
+
+TOLERANCE = 0.05
+WAVELENGTHS_NM = (450.0, 550.0, 650.0)
+INCIDENCES_DEG = (0.0, 40.0, 70.0)
+
+
+def pairs_of(scratches, **kwargs):
+    t = tables.build_tables(probe.scratch_set(scratches) if isinstance(scratches, list) else scratches,
+                            crossings=True, **kwargs)
+    partner = t.crossing_partner[:t.crossing_count]
+    owner = np.repeat(np.arange(t.piece_count), np.diff(t.crossing_start.astype(np.int64)))
+    return t, list(zip(owner.tolist(), partner.tolist()))
+
+
+# ------------------------------------------------------------------ tables
+def test01_a_crossing_is_listed_once_under_its_lower_piece():
+    t, pairs = pairs_of([ref.Scratch((-30, 0.5), (30, 0.5), 1.0, 0.25), ref.Scratch((-1, -30), (3, 30), 1.5, 0.4)])
+    assert t.piece_count > 2  # the scratches are cut at 1/64 UV: the crossing lies on one piece of each
+    assert len(pairs) == 1 and pairs[0][0] < pairs[0][1]
+    a = t.segments[:, 0:2].astype(np.float64) + t.segments[:, 2:4]
+    for piece in pairs[0]:  # both listed pieces hold the crossing point near x0 = UV (0.5, 0.5)
+        e = t.segments[piece, 4:6].astype(np.float64)
+        s = np.clip(np.dot(np.asarray(probe.X0_UV) - a[piece], e) / np.dot(e, e), 0, 1)
+        assert np.hypot(*(a[piece] + s * e - probe.X0_UV)) < 5e-3  # within 5 µm
+
+
+def test02_polyline_vertices_parallel_tracks_and_v_grooves_give_no_pair():
+    # a polyline crossing a straight scratch exactly at its vertex: one pair, not two
+    kinked = ScratchSet.from_polylines([probe.to_uv([(-20, -20), (0, 0), (20, -20)]), probe.to_uv([(0, -20), (0, 20)])],
+                                       width=[1e-6, 1e-6], depth=[2e-7, 3e-7])
+    assert len(pairs_of(kinked)[1]) == 1
+    # the kink of one polyline alone is no crossing
+    assert pairs_of(ScratchSet.from_polylines([probe.to_uv([(-20, -20), (0, 0), (20, -20)])], width=[1e-6],
+                                              depth=[2e-7]))[1] == []
+    # a grating: cells of parallel pieces are skipped, and nothing crosses
+    grating = [ref.Scratch((-30, y), (30, y), 1.0, 0.12) for y in np.arange(-12, 12.01, 1.6)]
+    assert pairs_of(grating)[1] == []
+    # nearly parallel pieces (|sin θ| < MIN_SINE) and V-grooves keep the additive model
+    sliver = [ref.Scratch((-30, 0), (30, 0), 1.0, 0.2), ref.Scratch((-30, -0.1), (30, 0.1), 1.0, 0.3)]
+    assert abs(np.sin(np.arctan2(0.2, 60))) < crossings.MIN_SINE and pairs_of(sliver)[1] == []
+    v_groove = [ref.Scratch((-30, 0), (30, 0), 1.0, 0.2, ref.TRI), ref.Scratch((0, -30), (0, 30), 1.0, 0.3)]
+    assert pairs_of(v_groove)[1] == []
+    # the additive model builds no list
+    assert tables.build_tables(probe.scratch_set(sliver[:1] + v_groove[1:])).crossing_count == 0
+
+
+def test03_the_options_are_checked():
+    with pytest.raises(Exception, match="crossings"):
+        probe.load_bsdf([], crossings="deepest")
+    assert "crossings=height_field (1 pairs)" in str(probe.load_bsdf(
+        [ref.Scratch((-30, 0.5), (30, 0.5), 1.0, 0.25), ref.Scratch((-1, -30), (3, 30), 1.5, 0.4)],
+        crossings="height_field"))
+
+
+# ------------------------------------------------------- against the raster
+def errors(scratches, sigma, pitch, combos, samples=81):
+    """{(λ, θ): (additive vs truth, height field vs truth, height field vs pairwise raster)}."""
+    raster = cs.Raster(scratches, sigma, pitch)
+    additive = probe.load_bsdf(scratches, sigma_um=sigma)
+    height_field = probe.load_bsdf(scratches, sigma_um=sigma, crossings="height_field")
+    out = {}
+    for wavelength_nm, theta in combos:
+        wi, rows, true, _summed, pairwise = raster.planes(wavelength_nm, theta, samples, pairwise=True)
+        a = cs.plugin_brdf(additive, wi, rows, wavelength_nm)
+        h = cs.plugin_brdf(height_field, wi, rows, wavelength_nm)
+        out[(wavelength_nm, theta)] = (cs.relative_l2(a, true), cs.relative_l2(h, true), cs.relative_l2(h, pairwise))
+    return raster, out
+
+
+TWO = [ref.Scratch((-30, 0.5), (30, 0.5), 1.0, 0.25), ref.Scratch((-1, -30), (3, 30), 1.5, 0.4)]
+
+
+def test04_two_crossing_scratches_match_the_height_field():
+    raster, out = errors(TWO, 2.0, 0.02, [(550.0, 40.0)])
+    additive, height_field, _ = out[(550.0, 40.0)]
+    assert raster.share > 0.1 and raster.triple_share == 0.0
+    assert additive > 0.3  # the paper's model counts the crossing twice
+    assert height_field < 0.01
+
+
+def test05_reciprocal_and_invariant_under_the_uv_map():
+    scratches = TWO + [ref.Scratch((-20, -3), (20, 4), 0.8, 0.15)]
+    rng = np.random.default_rng(5)
+    count = 4000
+    theta = np.degrees(np.arccos(rng.uniform(0.05, 1.0, (2, count))))
+    phi = rng.uniform(0, 360, (2, count))
+    wi = np.array([shading.direction(t, p) for t, p in zip(theta[0], phi[0])])
+    wo = np.array([shading.direction(t, p) for t, p in zip(theta[1], phi[1])])
+    bsdf = shading.load_bsdf(scratches, sigma_um=2.0, material="Cu", crossings="height_field")
+    forward, backward = shading.eval_brdf(bsdf, wi, wo), shading.eval_brdf(bsdf, wo, wi)
+    np.testing.assert_allclose(forward, backward, rtol=2e-3, atol=1e-6 * forward.max())
+
+    # the parallelogram is built in metres: a sheared UV map changes nothing
+    wi1 = shading.direction(35, 20)
+    wo1 = np.array([shading.direction(a, b) for a, b in [(10, 200), (50, 100), (5, 5), (30, 270)]])
+    base = shading.eval_brdf(bsdf, wi1, wo1)
+    jacobian = np.array([[1.7, 0.6], [0.2, 0.8]])
+    sheared = shading.load_bsdf(shading.scratch_set(scratches, jacobian), sigma_um=2.0, material="Cu",
+                                crossings="height_field")
+    si = shading.interaction(len(wo1), wi1)
+    si.dp_du = mi.Vector3f(float(jacobian[0, 0]), float(jacobian[1, 0]), 0)
+    si.dp_dv = mi.Vector3f(float(jacobian[0, 1]), float(jacobian[1, 1]), 0)
+    value = shading.spectrum_rows(sheared.eval(mi.BSDFContext(), si, shading.vector(wo1))) / wo1[:, 2:3]
+    np.testing.assert_allclose(value, base, rtol=2e-3)
+
+
+def test05b_sampling_weights_are_eval_over_pdf():
+    """Sampling is the additive model's (the correction only changes eval): weights stay eval / pdf."""
+    bsdf = shading.load_bsdf(TWO + [ref.Scratch((-20, -3), (20, 4), 0.8, 0.15)], sigma_um=2.0, material="Al",
+                             crossings="height_field")
+    count = 4096
+    rng = np.random.default_rng(55)
+    si = shading.interaction(count, shading.direction(35, 10))
+    bs, weight = bsdf.sample(mi.BSDFContext(), si, shading.floats(rng.random(count)),
+                             mi.Point2f(shading.floats(rng.random(count)), shading.floats(rng.random(count))))
+    value, pdf = bsdf.eval_pdf(mi.BSDFContext(), si, bs.wo)
+    weight, value, pdf = (shading.spectrum_rows(x) for x in (weight, value, np.asarray(pdf)))
+    valid = np.asarray(bs.pdf) > 0
+    assert valid.mean() > 0.9
+    np.testing.assert_allclose(np.asarray(bs.pdf)[valid], pdf[valid], rtol=1e-4)
+    np.testing.assert_allclose(weight[valid], value[valid] / pdf[valid, None], rtol=1e-3,
+                               atol=1e-6 * np.abs(weight).max())
+
+
+def test06_another_crossing_count_reuses_the_compiled_kernels():
+    """Crossing counts and lists are data: two sets evaluate through kernels of the same hashes."""
+    wo = np.array([shading.direction(30, 40 + k) for k in range(64)])
+    si, wo_vector = shading.interaction(len(wo), shading.direction(20)), shading.vector(wo)
+
+    def kernels(scratches):
+        bsdf = shading.load_bsdf(scratches, sigma_um=2.0, crossings="height_field")
+        dr.eval(si, wo_vector)
+        with dr.scoped_set_flag(dr.JitFlag.KernelHistory, True):
+            dr.kernel_history_clear()
+            dr.eval(bsdf.eval(mi.BSDFContext(), si, wo_vector))
+            return sorted(k["hash"] for k in dr.kernel_history() if k["type"] == dr.KernelType.JIT)
+
+    first = kernels(TWO)
+    assert first and kernels(cs.random_set(10, 2, 8.0, (0.5, 1.5))) == first
+
+
+DIRECTION_20 = np.array([np.cos(np.radians(20.0)), np.sin(np.radians(20.0))])
+#: (name, scratches, σ µm): pairs and sparse sets without triple overlaps, crossing shares 5–40 %
+VALIDATED = [
+    ("two, 15 %", cs.random_set(2, 1, 1.0, (1.0, 3.0)), 5.0),
+    ("two at 20°, 42 %", [ref.Scratch((-60, 0.8), (60, -0.4), 4.0, 0.3),
+                          ref.Scratch(tuple(-60 * DIRECTION_20 + (0.5, 0)), tuple(60 * DIRECTION_20 + (0.5, 0)), 3.0,
+                                      0.45)], 5.0),
+    ("ten, 4 %", cs.random_set(10, 4, 25.0, (0.5, 1.5)), 5.0),
+    ("ten, 10 %", cs.random_set(10, 3, 25.0, (0.5, 1.5)), 5.0),
+    ("ten, 12 %", cs.random_set(10, 4, 20.0, (1.0, 3.0)), 5.0),
+]
+ALL_COMBOS = [(lam, theta) for lam in WAVELENGTHS_NM for theta in INCIDENCES_DEG]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name, scratches, sigma", VALIDATED, ids=[v[0] for v in VALIDATED])
+def test07_sets_without_triple_overlaps_match_the_height_field(name, scratches, sigma):
+    raster, out = errors(scratches, sigma, 0.02, ALL_COMBOS)
+    assert 0.03 < raster.share < 0.45 and raster.triple_share < 2e-3, (raster.share, raster.triple_share)
+    worst = max(out, key=lambda k: out[k][1])
+    assert out[worst][1] < TOLERANCE, (worst, out[worst])
+    assert max(v[0] for v in out.values()) > 2 * TOLERANCE  # where the additive model fails
+
+
+DENSE = [
+    ("ten, 31 %", cs.random_set(10, 3, 15.0, (1.0, 3.0)), 5.0),
+    ("fifty, 9 %", cs.random_set(50, 0, 25.0, (0.1, 0.3)), 5.0),
+    ("fifty, 25 %", cs.random_set(50, 4, 25.0, (0.3, 0.8)), 5.0),
+]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name, scratches, sigma", DENSE, ids=[v[0] for v in DENSE])
+def test08_dense_sets_are_exact_to_pairs_and_closer_than_the_additive_model(name, scratches, sigma):
+    """With triple overlaps the correction is the pairwise inclusion–exclusion: exact to it, and the
+    remaining error is the triple overlaps' (docs/model.md §3.4), smaller than the additive model's."""
+    raster, out = errors(scratches, sigma, 0.02, [(450.0, 0.0), (550.0, 40.0), (650.0, 70.0)])
+    assert raster.triple_share > 2e-3
+    for additive, height_field, pairwise in out.values():
+        assert pairwise < TOLERANCE
+        assert height_field < 0.5 * additive
+
+
+def test09_extreme_crossings_stay_finite():
+    """Grazing and mirror directions, an 80 µm wide 30 µm deep groove, a 1e-4 µm thin one, a 1 nm piece."""
+    scratches = TWO + [ref.Scratch((0, 0), (0.001, 0), 0.5, 0.2), ref.Scratch((-5, -5), (5, 5.0001), 80.0, 30.0),
+                       ref.Scratch((-5, 5), (5, -5), 1e-4, 0.1)]
+    bsdf = shading.load_bsdf(scratches, crossings="height_field", sigma_um=2.0)
+    assert "(7 pairs)" in str(bsdf)
+    rng = np.random.default_rng(9)
+    wo = np.array([shading.direction(t, p) for t, p in zip(rng.uniform(0, 90, 2000), rng.uniform(0, 360, 2000))]
+                  + [shading.direction(89.9, 180), shading.direction(0, 0)])
+    for wi in (shading.direction(89.9), shading.direction(0), shading.direction(45, 30)):
+        f = shading.eval_brdf(bsdf, wi, wo)
+        assert np.isfinite(f).all() and f.max() > 0
+    assert str(shading.load_bsdf([], crossings="height_field")).endswith("crossings=height_field (0 pairs)]")
