@@ -8,7 +8,8 @@ from scratch_iridescence.mitsuba_bridge.bsdf.incremental import update_tables
 from scratch_iridescence.mitsuba_bridge.bsdf.tables import build_tables
 from scratch_iridescence.mitsuba_bridge.scratch import ScratchSet
 
-ARRAYS = ("segments", "references", "offsets", "cell_frames", "cell_start")
+ARRAYS = ("segments", "references", "offsets", "cell_frames", "cell_start", "crossing_start", "crossing_partner",
+          "crossing_along")
 
 
 def plate(count, seed, region=((0.05, 0.05), (0.95, 0.95))):
@@ -80,3 +81,16 @@ def test_sets_over_the_cache_limit_are_always_built_in_full(monkeypatch):
     extended = update_tables(cache, more)
     assert not extended.incremental
     assert_same(extended.tables, build_tables(more))
+
+
+def test_with_crossing_pairs_every_update_is_a_full_build_listing_the_new_pairs():
+    # The appended pieces' crossing pairs are not merged incrementally: with crossings = "height_field"
+    # an update is a fresh build (pairs included), and an additive extension lists no pairs.
+    scratches = plate(200, 7, region=((0.3, 0.3), (0.7, 0.7)))
+    cache = update_tables(None, scratches, crossings=True)
+    stroke = ScratchSet.concatenate([scratches, plate(3, 8, region=((0.4, 0.4), (0.6, 0.6)))])
+    updated = update_tables(cache, stroke, crossings=True)
+    assert not updated.incremental and updated.tables.crossing_count > cache.tables.crossing_count > 0
+    assert_same(updated.tables, build_tables(stroke, crossings=True))
+    additive = update_tables(update_tables(None, scratches), stroke)
+    assert additive.incremental and additive.tables.crossing_count == 0
