@@ -19,11 +19,17 @@ and scripts use it directly.
 Progressive schedule (fixed, so that every pass size compiles once and a
 session is reproducible): after each change the first pass renders one sample
 at ``1/start_divisor`` of the resolution (shown enlarged), then full-resolution
-passes of one sample follow, from the fifth on passes of ``BATCH_SPP`` samples
-(fewer per-call overheads once the picture has settled), up to ``samples``.
-Pass *i* after a change uses the sampler seed ``pass_seed(settings.seed, i)``,
-so the image after *n* passes is exactly the one a freshly built session gives
-after the same *n* passes.
+passes of one sample follow, up to ``samples``.  On the CPU a full-resolution
+pass is rendered in horizontal strips of at most ``CPU_STRIP_PIXELS`` pixels
+(the rows above the strip in flight already show the new sample): a kernel
+cannot be interrupted, so a change waits for the strip in flight, not for a
+whole pass.  Every strip is the same small film seen through a camera aimed at
+its rows (:func:`.builder.window_camera`), one kernel for all strips.  On a GPU
+a pass is one launch, and from the fifth pass on it renders ``BATCH_SPP``
+samples (fewer per-call overheads once the picture has settled).  Render *i*
+after a change (preview, strip or pass) uses the sampler seed
+``pass_seed(settings.seed, i)``, so the image after *n* renders is exactly the
+one a freshly built session gives after the same *n* renders.
 
 Every update either changes parameters in place through ``mi.traverse`` (kept
 opaque, so the kernels stay valid) or, where that cannot express the change
@@ -47,28 +53,47 @@ from .kernels import KernelCounter
 from .render import Progress, pass_seed
 from .scene import Camera, Film, RenderSettings, SceneDescription, ScratchedMetal, Shape
 
-__all__ = ["Session", "plan_pass", "BATCH_SPP", "SINGLE_SAMPLE_PASSES"]
+__all__ = ["Session", "plan_pass", "strip_windows", "BATCH_SPP", "SINGLE_SAMPLE_PASSES", "CPU_STRIP_PIXELS"]
 
 #: Full-resolution passes of one sample after each change (a quick, steady refinement) ...
 SINGLE_SAMPLE_PASSES = 4
-#: ... then passes of this many samples (each size/spp pair is one kernel, compiled once).
+#: ... then passes of this many samples where a pass is one launch (each size/spp pair is one kernel).
 BATCH_SPP = 4
+#: On the CPU, full-resolution passes are rendered in strips of at most this many pixels (2¹⁷: about
+#: 40 ms of the demo plate on 2 cores), so that a change waits for one strip, not a whole pass.
+CPU_STRIP_PIXELS = 1 << 17
 
 
-def plan_pass(index: int, spp_done: int, spp_total: int, start_divisor: int) -> tuple[bool, int]:
+def plan_pass(index: int, spp_done: int, spp_total: int, start_divisor: int,
+              batch_spp: int = BATCH_SPP) -> tuple[bool, int]:
     """``(preview, spp)`` of pass ``index`` after a change.
 
     ``preview`` passes render at ``1/start_divisor`` resolution and do not count
     towards ``spp_done``.  The answer depends on the pass index and sample
-    counts only, never on time.
+    counts only, never on time.  ``batch_spp`` is the sample count of the passes
+    after the first ``SINGLE_SAMPLE_PASSES`` (1: every pass renders one sample).
     """
     if index == 0 and start_divisor > 1:
         return True, 1
     remaining = spp_total - spp_done
     full_index = index - (1 if start_divisor > 1 else 0)
-    if full_index >= SINGLE_SAMPLE_PASSES and remaining >= BATCH_SPP:
-        return False, BATCH_SPP
+    if full_index >= SINGLE_SAMPLE_PASSES and remaining >= batch_spp:
+        return False, batch_spp
     return False, 1
+
+
+def strip_windows(film: Film, max_pixels: int) -> list[tuple[int, int, int, int]]:
+    """The strips ``(x, y, w, h)`` (frame pixels) that cover ``film``'s crop window, or the frame.
+
+    As few strips as keep each at most ``max_pixels`` (0: no limit), all of the
+    same height (the last may reach past the window's bottom edge: its extra
+    rows are not used).  One strip is the whole window.
+    """
+    x, y, width, height = film.crop or (0, 0, film.width, film.height)
+    count = 1 if max_pixels <= 0 else min(height, max(1, -(-width * height // max_pixels)))
+    rows = -(-height // count)
+    count = -(-height // rows)
+    return [(x, y + index * rows, width, rows) for index in range(count)]
 
 
 def _preview_film(film: Film, divisor: int) -> Film:
@@ -99,10 +124,13 @@ class Session:
         The first pass after each change renders at 1/start_divisor resolution (1: no preview).
     freeze : bool
         Replay recorded passes (``dr.freeze``, see :mod:`.freezing`) instead of tracing each one again.
+    strip_pixels : int, optional
+        Render full-resolution passes in strips of at most this many pixels (0: whole passes).
+        Default ``CPU_STRIP_PIXELS`` on the CPU, 0 on a GPU.
     """
 
     def __init__(self, description: SceneDescription, settings: RenderSettings, *, samples: int | None = None,
-                 start_divisor: int = 4, freeze: bool = True):
+                 start_divisor: int = 4, freeze: bool = True, strip_pixels: int | None = None):
         if start_divisor < 1:
             raise ValueError(f"start_divisor must be at least 1, got {start_divisor}")
         self.settings = settings
@@ -110,6 +138,7 @@ class Session:
         if self.samples < 1:
             raise ValueError("samples must be at least 1")
         self.start_divisor = int(start_divisor)
+        self._strip_pixels = strip_pixels
         self._counter = KernelCounter()
         self._render = FrozenRender(freeze)
         self._stats = {"passes": 0, "rebuilds": 0, "updates": 0, "last_update": "build",
@@ -128,6 +157,16 @@ class Session:
         if self.start_divisor > 1:
             preview = _preview_film(description.film, self.start_divisor)
             scene_dict["sensor-preview"] = builder.sensor_dict(description.camera, preview, self.settings)
+        strip_pixels = self._strip_pixels
+        if strip_pixels is None:
+            strip_pixels = 0 if mi.variant().startswith("cuda") else CPU_STRIP_PIXELS
+        self._windows = strip_windows(description.film, strip_pixels)
+        if len(self._windows) > 1:
+            camera, film = builder.window_camera(description.camera, description.film, self._windows[0])
+            scene_dict["sensor-strip"] = builder.sensor_dict(camera, film, self.settings)
+        # Mitsuba lists the sensors in the dictionary's order.
+        self._sensor_index = {key: index for index, key in
+                              enumerate(key for key in scene_dict if key in ("sensor", "sensor-preview", "sensor-strip"))}
         # scene_dict adds "shape-…" entries in the order of description.shapes, nothing else starts so.
         self._shape_keys = [key for key in scene_dict if key.startswith("shape-")]
         self._scene = mi.load_dict(scene_dict)
@@ -144,8 +183,12 @@ class Session:
         self._stats["last_update"] = f"rebuild ({reason})"
 
     def _restart(self) -> None:
-        self._index = 0
+        self._index = 0  #: renders since the change (preview, strips, passes): the seed's index
+        self._pass_index = 0  #: passes begun since the change (a pass is all its strips)
+        self._strip = 0  #: the next strip of the current pass
+        self._plan = (False, 1)
         self._sum = None
+        self._shown = None
         self._spp_done = 0
         self._started = time.perf_counter()
         self._finished = False
@@ -182,10 +225,12 @@ class Session:
         self._assign({prefix + key: new[key] for key in keys})
         return True
 
-    def _sensor_keys(self) -> list[tuple[str, Film]]:
-        sensors = [("sensor.", self.description.film)]
+    def _sensors(self, camera: Camera) -> list[tuple[str, Camera, Film]]:
+        """(traversal prefix, camera, film) of the full-frame and preview sensors."""
+        film = self.description.film
+        sensors = [("sensor.", camera, film)]
         if self.start_divisor > 1:
-            sensors.append(("sensor-preview.", _preview_film(self.description.film, self.start_divisor)))
+            sensors.append(("sensor-preview.", camera, _preview_film(film, self.start_divisor)))
         return sensors
 
     # ------------------------------------------------------------------ updates
@@ -202,20 +247,34 @@ class Session:
         self._updated("camera", began, replayable=not any(key.endswith("_clip") for key in values))
 
     def _camera_values(self, camera: Camera) -> dict:
+        """The sensors' new parameters; the strip sensor's per strip go to ``_strip_values``."""
+        values = {}
+        for prefix, view, film in self._sensors(camera):
+            values.update(self._sensor_values(prefix, view, film))
+        if len(self._windows) > 1:
+            strips = [builder.window_camera(camera, self.description.film, window) for window in self._windows]
+            self._strip_values = [self._sensor_values("sensor-strip.", view, film, clip=False)
+                                  for view, film in strips]
+            # Which strip the sensor shows (assigning its own values again costs a comparison kernel).
+            self._strip_shown = None
+            # the strips share their clipping range: written (when it changes) with the other sensors'
+            values.update(self._sensor_values("sensor-strip.", *strips[0]))
+        return values
+
+    def _sensor_values(self, prefix: str, camera: Camera, film: Film, *, clip: bool = True) -> dict:
         import mitsuba as mi
 
         values = {}
-        for prefix, film in self._sensor_keys():
-            sensor = builder.sensor_dict(camera, film, self.settings)
-            values[prefix + "to_world"] = mi.AffineTransform4f(sensor["to_world"].matrix)
-            # Clipping distances are scalars of the sensor (kernel literals): written only when they change.
-            for name in ("near_clip", "far_clip"):
-                if np.float32(self._params[prefix + name]) != np.float32(sensor[name]):  # stored as float32
-                    values[prefix + name] = sensor[name]
-            if camera.projection == "perspective":
-                values[prefix + "x_fov"] = mi.Float(sensor["fov"])
-                values[prefix + "principal_point_offset_x"] = mi.Float(sensor["principal_point_offset_x"])
-                values[prefix + "principal_point_offset_y"] = mi.Float(sensor["principal_point_offset_y"])
+        sensor = builder.sensor_dict(camera, film, self.settings)
+        values[prefix + "to_world"] = mi.AffineTransform4f(sensor["to_world"].matrix)
+        # Clipping distances are scalars of the sensor (kernel literals): written only when they change.
+        for name in ("near_clip", "far_clip") if clip else ():
+            if np.float32(self._params[prefix + name]) != np.float32(sensor[name]):  # stored as float32
+                values[prefix + name] = sensor[name]
+        if camera.projection == "perspective":
+            values[prefix + "x_fov"] = mi.Float(sensor["fov"])
+            values[prefix + "principal_point_offset_x"] = mi.Float(sensor["principal_point_offset_x"])
+            values[prefix + "principal_point_offset_y"] = mi.Float(sensor["principal_point_offset_y"])
         return values
 
     def set_film(self, film: Film) -> None:
@@ -374,31 +433,62 @@ class Session:
         return self._latest
 
     def _render_pass(self) -> None:
-        preview, spp = plan_pass(self._index, self._spp_done, self.samples, self.start_divisor)
+        """One render: the preview, one strip of a full-resolution pass, or a whole pass."""
+        strips = len(self._windows)
+        if self._strip == 0:
+            self._plan = plan_pass(self._pass_index, self._spp_done, self.samples, self.start_divisor,
+                                   BATCH_SPP if strips == 1 else 1)
+        preview, spp = self._plan
+        if preview:
+            sensor = self._sensor_index["sensor-preview"]
+        elif strips > 1:
+            if self._strip_shown != self._strip:  # opaque values: the recorded strip replays
+                self._assign(self._strip_values[self._strip])
+                self._strip_shown = self._strip
+            sensor = self._sensor_index["sensor-strip"]
+        else:
+            sensor = self._sensor_index["sensor"]
         began = time.perf_counter()
-        image = np.asarray(self._render(self._scene, 1 if preview else 0, spp,
-                                        pass_seed(self.settings.seed, self._index)), dtype=np.float32)
+        image = np.asarray(self._render(self._scene, sensor, spp, pass_seed(self.settings.seed, self._index)),
+                           dtype=np.float32)
         self._counter.poll()
         self._stats["passes"] += 1
         self._stats["last_pass_seconds"] = time.perf_counter() - began
         self._index += 1
         width, height = self.description.film.size
         if preview:
-            shown = _enlarge(image, height, width)
+            self._shown = _enlarge(image, height, width)
+            self._pass_index += 1
         else:
-            self._sum = image * spp if self._sum is None else self._sum + image * spp
-            self._spp_done += spp
-            shown = self._sum / self._spp_done
-            self._finished = self._spp_done >= self.samples
+            if self._sum is None:
+                self._sum = np.zeros((height, width, image.shape[2]), np.float32)
+            if self._shown is None:  # no preview: rows not rendered yet stay black
+                self._shown = np.zeros_like(self._sum)
+            top = self._strip * self._windows[0][3]
+            bottom = min(height, top + image.shape[0])
+            self._sum[top:bottom] += image[:bottom - top] * spp
+            self._shown[top:bottom] = self._sum[top:bottom] / (self._spp_done + spp)
+            self._strip = (self._strip + 1) % strips
+            if self._strip == 0:
+                self._spp_done += spp
+                self._pass_index += 1
+                self._finished = self._spp_done >= self.samples
         self._latest = Progress(self._index, self._spp_done, self.samples, time.perf_counter() - self._started,
-                                shown=shown)
+                                shown=self._shown.copy())
+
+    @property
+    def showing_preview(self) -> bool:
+        """Whether the newest image is (still) the enlarged preview: no full-resolution strip yet."""
+        return self._sum is None
 
     @property
     def stats(self) -> dict:
-        """``kernels_compiled`` (since the session began), ``passes``, ``rebuilds``, ``updates``,
-        ``last_update`` (kind), ``last_update_seconds``, ``last_pass_seconds``, ``spp_done``, ``samples``."""
+        """``kernels_compiled`` (since the session began), ``passes`` (renders: previews, strips, passes),
+        ``rebuilds``, ``updates``, ``last_update`` (kind), ``last_update_seconds``, ``last_pass_seconds``,
+        ``spp_done``, ``samples``, ``strips`` (per full-resolution pass), ``frozen``, ``freeze_failure``,
+        ``recordings``."""
         return {**self._stats, "kernels_compiled": self._counter.compiled, "spp_done": self._spp_done,
-                "samples": self.samples, "frozen": self._render.enabled, "freeze_failure": self._render.failure,
+                "samples": self.samples, "strips": len(self._windows), "frozen": self._render.enabled, "freeze_failure": self._render.failure,
                 "recordings": self._render.recordings}
 
     def close(self) -> None:

@@ -24,7 +24,32 @@ from .footprint import NotEnoughMemory, check_memory
 from .schedule import MAX_SAMPLES_PER_PASS, Chunk, PairwiseSum, ScheduleError, pass_seed, sample_schedule
 
 __all__ = ["Progress", "Refresh", "render_passes", "render_chunks", "render_image", "film_pixels", "pass_seed",
-           "sample_schedule", "Chunk", "MAX_SAMPLES_PER_PASS", "NotEnoughMemory", "ScheduleError"]
+           "sample_schedule", "Chunk", "MAX_SAMPLES_PER_PASS", "NotEnoughMemory", "ScheduleError",
+           "RenderInterrupted", "render_whole"]
+
+
+class RenderInterrupted(KeyboardInterrupt):
+    """Mitsuba stopped a render early (a SIGINT reached it): the result of that call is not used."""
+
+
+def render_whole(scene, **arguments):
+    """``mi.render(scene, **arguments)``, refused (:class:`RenderInterrupted`) if a SIGINT cut it short.
+
+    While ``mi.render`` runs, Mitsuba replaces the SIGINT handler with its own,
+    which cancels the integrator and passes the signal on to the previous
+    handler.  Python's raises ``KeyboardInterrupt`` later, but a process that
+    inherited SIGINT as ignored (a background job of a shell script) never
+    hears of it, and the call returns as if nothing happened.  The
+    integrator's ``should_stop()`` remembers the cancellation until the next
+    render (it is also set by an integrator's ``timeout``, which our scenes
+    never set): checked here, so that no cancelled render reaches an image.
+    """
+    import mitsuba as mi
+
+    image = mi.render(scene, **arguments)
+    if scene.integrator().should_stop():
+        raise RenderInterrupted("Mitsuba stopped the render early (interrupted)")
+    return image
 
 
 @dataclass(frozen=True)
@@ -94,15 +119,13 @@ def render_chunks(scene, chunks: Iterable[Chunk], spp_total: int) -> Iterator[Pr
     ``spp_total`` is the sum of their spp (for ``fraction``).  Stop iterating to
     cancel: no work is left behind.
     """
-    import mitsuba as mi
-
     chunks = list(chunks)
     indices = [chunk.index for chunk in chunks]
     if indices and indices != list(range(indices[0], indices[0] + len(indices))):
         raise ValueError("render_chunks needs consecutive chunks of one schedule (the sums follow their indices)")
     sums, done, start = PairwiseSum(chunks[0].index if chunks else 0), 0, time.perf_counter()
     for number, chunk in enumerate(chunks, start=1):
-        image = np.asarray(mi.render(scene, spp=chunk.spp, seed=chunk.seed), dtype=np.float32)
+        image = np.asarray(render_whole(scene, spp=chunk.spp, seed=chunk.seed), dtype=np.float32)
         # float32 × an integer below 2**29 is exact in float64: the only rounding is in the fixed-order sum.
         sums.add(image.astype(np.float64) * chunk.spp)
         done += chunk.spp

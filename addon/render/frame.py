@@ -78,7 +78,7 @@ def render_frame(engine, depsgraph) -> None:
 
     width, height = description.film.size
     result = engine.begin_result(0, 0, width, height, layer=depsgraph.view_layer.name)
-    cancelled = False
+    cancelled, progress = False, None
     try:
         if (result.resolution_x, result.resolution_y) != (width, height):
             raise RuntimeError(f"Blender expects a {result.resolution_x} x {result.resolution_y} image but the "
@@ -104,6 +104,11 @@ def render_frame(engine, depsgraph) -> None:
                 combined.rect.foreach_set(combined_rect(progress.image, description.film.transparent).ravel())
                 engine.update_result(result)
                 break
+    except passes.RenderInterrupted:  # Ctrl-C in Blender's terminal: Blender's own handler heard it too
+        cancelled = True
+        if progress is not None:  # the samples of the chunks before the interrupted one
+            combined.rect.foreach_set(combined_rect(progress.image, description.film.transparent).ravel())
+            engine.update_result(result)
     except (passes.NotEnoughMemory, passes.ScheduleError) as error:
         _fail(engine, f"Mitsuba Scratch: {error}")
     except Exception as error:

@@ -235,7 +235,7 @@ class ViewportRender:
                     session = self._apply(session, coalesce(todo))
                     if session is not None and not session.finished:
                         progress = session.step(0.0)
-                        linger = progress.spp_done == 0
+                        linger = session.showing_preview
                         rect = combined_rect(progress.image, session.description.film.transparent).ravel()
                         with self._lock:
                             self._latest, self._rect, self._version = progress, rect, self._version + 1

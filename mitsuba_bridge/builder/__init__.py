@@ -10,13 +10,13 @@ from __future__ import annotations
 from collections import Counter
 
 from ..scene import Mask, RenderSettings, SceneDescription, Transparent, walk_materials
-from .camera import film_dict, integrator_dict, sensor_dict
+from .camera import film_dict, integrator_dict, sensor_dict, window_camera
 from .lights import light_dict, world_dict
 from .materials import add_weights, bsdf_dict, emitter_dict
 from .resources import InMemory, ToFolder, safe_name
 from .transform import to_mitsuba
 
-__all__ = ["scene_dict", "load_scene", "InMemory", "ToFolder", "sensor_dict", "film_dict", "integrator_dict",
+__all__ = ["scene_dict", "load_scene", "InMemory", "ToFolder", "sensor_dict", "film_dict", "integrator_dict", "window_camera",
            "bsdf_dict", "emitter_dict", "add_weights", "light_dict", "world_dict", "material_id",
            "MIN_INSTANCES"]
 

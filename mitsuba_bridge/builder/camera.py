@@ -1,12 +1,15 @@
 """Camera, film, sampler and integrator dicts."""
 from __future__ import annotations
 
+import dataclasses
+import math
+
 import numpy as np
 
 from ..scene import Camera, Film, RenderSettings
 from .transform import FLIP_XZ, scale, to_mitsuba, translate
 
-__all__ = ["sensor_dict", "integrator_dict", "film_dict"]
+__all__ = ["sensor_dict", "integrator_dict", "film_dict", "window_camera"]
 
 
 def film_dict(film: Film) -> dict:
@@ -62,6 +65,35 @@ def sensor_dict(camera: Camera, film: Film, settings: RenderSettings) -> dict:
         sampler={"type": "independent", "sample_count": int(settings.spp), "seed": int(settings.seed)},
     )
     return sensor
+
+
+def window_camera(camera: Camera, film: Film, window: tuple[int, int, int, int]) -> tuple[Camera, Film]:
+    """The camera and film that see exactly the pixels ``window`` = (x, y, w, h) of ``film``'s frame.
+
+    The window is in pixels of the whole frame (``film.width`` × ``film.height``, origin at the
+    top-left corner, like a crop window) and may reach past its edges. The returned film is
+    ``w`` × ``h`` without a crop window: its pixel (i, j) sees what pixel (x + i, y + j) of the
+    frame sees, for either projection (the window's share of the field of view or of the
+    orthographic width, and a lens shift that centres it). The interactive session renders a
+    frame in strips this way: every strip is the same small film, hence the same kernel.
+    """
+    x, y, w, h = window
+    if w < 1 or h < 1:
+        raise ValueError(f"window size must be positive, got {w} x {h}")
+    width, height = film.width, film.height
+    # The window's centre, in pixels right of / above the frame's centre.
+    right = x + 0.5 * w - 0.5 * width
+    up = 0.5 * height - (y + 0.5 * h)
+    shift_x = (camera.shift_x * width + right) / w
+    shift_y = (camera.shift_y * height + up) / h
+    if camera.projection == "perspective":
+        half_tan = math.tan(math.radians(camera.fov_x_deg) / 2.0) * w / width
+        window = dataclasses.replace(camera, fov_x_deg=math.degrees(2.0 * math.atan(half_tan)),
+                                     shift_x=shift_x, shift_y=shift_y)
+    else:
+        window = dataclasses.replace(camera, ortho_width=camera.ortho_width * w / width,
+                                     shift_x=shift_x, shift_y=shift_y)
+    return window, Film(w, h, filter=film.filter, transparent=film.transparent)
 
 
 def integrator_dict(settings: RenderSettings, film: Film, *, see_through_surfaces: bool = False) -> dict:

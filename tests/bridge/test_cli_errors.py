@@ -172,11 +172,13 @@ def test_a_failed_write_keeps_the_previous_image(good, tmp_path, monkeypatch, ca
 
 
 def test_ctrl_c_ends_cleanly_with_status_130(good, tmp_path):
+    """The child gets SIGINT's default disposition whatever the suite inherited: a suite started as a
+    background job of a shell script (`make test-stress &`) ignores SIGINT, and so would the child."""
     out = tmp_path / "out.exr"
     write_exr(out, np.ones((2, 2, 3), np.float32))
     process = subprocess.Popen([sys.executable, "-m", "scratch_iridescence.mitsuba_bridge", "render", str(good / "plain"), "-o", str(out),
                                 "--spp", "1000000", *LLVM], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                               text=True, cwd=ROOT)
+                               text=True, cwd=ROOT, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     assert "spp" in process.stdout.readline()  # loaded: the render is under way
     time.sleep(0.5)
     process.send_signal(signal.SIGINT)

@@ -202,3 +202,97 @@ def test13_the_kernel_counter_sees_a_new_film_size_compile(session):
     session.set_camera(S.Camera(camera_at((0.1, 0, 3)), fov_x_deg=60))
     finish(session)
     assert session.stats["kernels_compiled"] == settled
+
+
+# ---- strips: a full-resolution pass rendered as strips of one small film (CPU)
+
+@pytest.mark.parametrize("camera", [
+    S.Camera(camera_at((0.3, -0.2, 3.0)), fov_x_deg=55, shift_x=0.1, shift_y=-0.05),
+    S.Camera(camera_at((0.3, -0.2, 3.0)), projection="orthographic", ortho_width=2.5, shift_x=-0.2, shift_y=0.1),
+], ids=["perspective", "orthographic"])
+@pytest.mark.parametrize("crop", [None, (9, 5, 40, 30)], ids=["frame", "crop"])
+def test14_window_camera_sees_the_frame_pixels_of_its_window(variant, camera, crop):
+    """Each pixel of a window's film casts the ray of the frame's pixel it stands for."""
+    import mitsuba as mi
+
+    film = S.Film(64, 48, crop=crop)
+    settings = S.RenderSettings(spp=1)
+    full = mi.load_dict(builder.sensor_dict(camera, S.Film(64, 48), settings))
+    for window in [(9, 5, 40, 12), (0, 40, 64, 12), (20, 30, 7, 3)]:  # the second reaches past the bottom edge
+        view, window_film = builder.window_camera(camera, film, window)
+        assert window_film.size == window[2:] and window_film.crop is None
+        sensor = mi.load_dict(builder.sensor_dict(view, window_film, settings))
+        x, y, w, h = window
+        i, j = np.meshgrid(np.arange(w) + 0.25, np.arange(h) + 0.75)
+        rays = {}
+        for name, which, position in (("window", sensor, (i / w, j / h)), ("frame", full, ((x + i) / 64, (y + j) / 48))):
+            ray, _ = which.sample_ray(0.0, 0.5, mi.Point2f(position[0].ravel(), position[1].ravel()), mi.Point2f(0.5))
+            rays[name] = np.array(ray.o), np.array(ray.d)
+        np.testing.assert_allclose(rays["window"][0], rays["frame"][0], atol=2e-5)
+        np.testing.assert_allclose(rays["window"][1], rays["frame"][1], atol=2e-5)
+
+
+def test15_strip_windows_cover_the_window_with_equal_strips():
+    assert interactive.strip_windows(S.Film(960, 540), 1 << 17) == [(0, 135 * k, 960, 135) for k in range(4)]
+    strips = interactive.strip_windows(S.Film(64, 48, crop=(3, 7, 50, 33)), 50 * 8)
+    assert [s[1] for s in strips] == [7, 14, 21, 28, 35] and {s[3] for s in strips} == {7}  # 35 rows for 33
+    assert interactive.strip_windows(S.Film(64, 48), 0) == [(0, 0, 64, 48)]
+    assert interactive.strip_windows(S.Film(4, 3), 1) == [(0, k, 4, 1) for k in range(3)]
+
+
+def test16_strips_refine_row_bands_and_reproduce_exactly(variant):
+    """Five strips a pass: the rows above the strip in flight show one more sample; reruns are identical."""
+    def run(passes_after_preview):
+        session = interactive.Session(plate_scene(), SETTINGS, samples=SAMPLES, strip_pixels=64 * 10)
+        images = [session.step(0.0).image]
+        assert session.showing_preview
+        for _ in range(passes_after_preview):
+            images.append(session.step(0.0).image)
+        stats = session.stats
+        session.close()
+        return images, stats
+    images, stats = run(7)
+    assert stats["spp_done"] == 1 and stats["passes"] == 8  # preview, 5 strips (one pass), two strips
+    preview = images[0]
+    assert np.array_equal(images[1][10:], preview[10:]) and not np.array_equal(images[1][:10], preview[:10])
+    assert np.array_equal(images[5][:10], images[4][:10])  # rows of earlier strips stay until their next sample
+    assert not np.array_equal(images[6][:10], images[5][:10]) and np.array_equal(images[6][10:], images[5][10:])
+    again, _ = run(7)
+    assert all(np.array_equal(a, b) for a, b in zip(images, again))
+
+
+def test17_strips_estimate_the_whole_pass_image(variant):
+    """Strip and whole-pass sessions (other samples) agree band by band within their noise (5 sigma)."""
+    spp = 32
+    description = dataclasses.replace(plate_scene(), materials={"scratched": S.Diffuse((0.5, 0.5, 0.5))})
+    images = {}
+    for strip_pixels in (0, 64 * 10):
+        session = interactive.Session(description, SETTINGS, samples=spp, strip_pixels=strip_pixels)
+        images[strip_pixels] = finish(session).image[..., :3]
+        session.close()
+    difference = images[64 * 10] - images[0]
+    for band in range(0, 48, 8):  # a strip out of place shows as a band whose difference is no noise
+        values = difference[band:band + 8].ravel()
+        assert abs(values.mean()) < 5.0 * values.std() / np.sqrt(values.size) + 1e-6, band
+    assert abs(images[64 * 10].mean() / images[0].mean() - 1.0) < 0.02
+
+
+def test18_strip_sessions_take_updates_in_place_and_compile_nothing(variant):
+    """Camera moves and new scratch sets in a strip session: the rebuilt strip session's image, no kernels."""
+    strips = dict(samples=SAMPLES, strip_pixels=64 * 10)
+    session = interactive.Session(plate_scene(), SETTINGS, **strips)
+    finish(session)
+    kernels = session.stats["kernels_compiled"]
+    camera = S.Camera(camera_at((0.2, -0.1, 3.0)), fov_x_deg=52, shift_x=0.03)
+    new_set = scratches(300, seed=5)
+    session.set_camera(camera)
+    session.set_scratches("scratched", new_set)
+    image = finish(session).image
+    assert session.stats["kernels_compiled"] == kernels and session.stats["rebuilds"] == 0
+    session.close()
+    description = plate_scene(camera)
+    metal = dataclasses.replace(description.materials["scratched"], scratches=new_set)
+    rebuilt = interactive.Session(dataclasses.replace(description, materials={"scratched": metal}), SETTINGS,
+                                  **strips)
+    assert np.array_equal(image, finish(rebuilt).image)
+    rebuilt.close()

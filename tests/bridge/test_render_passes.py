@@ -171,3 +171,19 @@ def test12_chunks_must_be_consecutive():
     chunks = schedule.sample_schedule(37, 32 * 24)
     with pytest.raises(ValueError, match="consecutive chunks"):
         next(render.render_chunks(None, [chunks[0], chunks[2]], 8))
+
+
+def test13_a_render_mitsuba_stopped_early_never_reaches_the_image(variant):
+    """Mitsuba's SIGINT handler cancels the integrator, and a process that ignores SIGINT never hears of it:
+    ``should_stop()`` is what tells. The integrator's ``timeout`` sets the same flag, deterministically."""
+    import mitsuba as mi
+
+    scene = builder.load_scene(simple_scene(world=S.ConstantWorld((0.5, 0.5, 0.5))), S.RenderSettings())
+    assert np.asarray(render.render_whole(scene, spp=1, seed=0)).shape == (24, 32, 4)
+    stopped = mi.load_dict({"type": "scene", "integrator": {"type": "path", "timeout": 1e-9},
+                            "sensor": {"type": "perspective", "film": {"type": "hdrfilm", "width": 8, "height": 8}},
+                            "world": {"type": "constant"}})
+    with pytest.raises(render.RenderInterrupted, match="stopped the render early"):
+        render.render_whole(stopped, spp=1, seed=0)
+    with pytest.raises(KeyboardInterrupt):  # the CLI's Ctrl-C path: "interrupted: nothing was written", 130
+        list(render.render_passes(stopped, 8))
