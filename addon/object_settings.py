@@ -13,7 +13,8 @@ from __future__ import annotations
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, FloatVectorProperty
 
-from ..mitsuba_bridge.bsdf.parameters import BASE_MATERIALS, DEFAULT_COHERENCE_DIAMETER_M
+from ..mitsuba_bridge.bsdf.parameters import (BASE_MATERIALS, CROSSING_ITEMS, DEFAULT_COHERENCE_DIAMETER_M,
+                                             DEFAULT_CROSSINGS, DEFAULT_DEPTH_PHASE, DEPTH_PHASE_ITEMS)
 
 M_TO_UM = 1e6
 
@@ -51,6 +52,21 @@ class SCRATCH_PG_object(bpy.types.PropertyGroup):
         description="Add the waves of all scratches in a coherence area (interference, grating "
                     "colours); off: add their intensities, as the paper's comparison mode",
         default=True,
+        update=_tag_object,
+    )
+    crossings: EnumProperty(
+        name="Crossings",
+        description="How crossing scratches combine",
+        items=[(code, label, description) for code, label, description in CROSSING_ITEMS],
+        default=DEFAULT_CROSSINGS,
+        update=_tag_object,
+    )
+    depth_phase: EnumProperty(
+        name="Depth Phase",
+        description="Phase a scratch's depth gives the reflected wave (matters for scratches deeper than "
+                    "about a wavelength)",
+        items=[(code, label, description) for code, label, description in DEPTH_PHASE_ITEMS],
+        default=DEFAULT_DEPTH_PHASE,
         update=_tag_object,
     )
     diffuse_reflectance: FloatVectorProperty(

@@ -343,6 +343,7 @@ class Session:
             return
         if isinstance(material, ScratchedMetal) and isinstance(old, ScratchedMetal):
             same_kind = (material.coherent == old.coherent
+                         and (material.crossings, material.depth_phase) == (old.crossings, old.depth_phase)
                          and (material.diffuse_reflectance is None) == (old.diffuse_reflectance is None)
                          and (material.material.lower() == "none") == (old.material.lower() == "none"))
             if same_kind:

@@ -32,6 +32,7 @@ from typing import Optional, Union
 
 import numpy as np
 
+from .bsdf.parameters import CROSSINGS, DEFAULT_CROSSINGS, DEFAULT_DEPTH_PHASE, DEPTH_PHASES
 from .scratch import ScratchSet
 from .shading import Add, Bump, Checker, Dielectric, Mask, Mix, NormalMap, Translucent, Transparent
 
@@ -207,7 +208,8 @@ class ScratchedMetal:
 
     ``coherence_diameter_m`` is in metres; ``metres_per_unit`` is metres per
     scene unit (maps the mesh's UV Jacobian to metres; the plugin's ``unit_scale``); ``material`` is a Mitsuba
-    conductor name or ``"none"`` (perfect mirror).
+    conductor name or ``"none"`` (perfect mirror). ``crossings`` and ``depth_phase``
+    are the plugin's options of those names (docs/bsdf.md).
     """
 
     scratches: ScratchSet
@@ -216,6 +218,14 @@ class ScratchedMetal:
     material: str = "Al"
     coherent: bool = True
     diffuse_reflectance: Optional[RGB] = None
+    crossings: str = DEFAULT_CROSSINGS
+    depth_phase: str = DEFAULT_DEPTH_PHASE
+
+    def __post_init__(self):
+        if self.crossings not in CROSSINGS:
+            raise ValueError(f"crossings must be one of {', '.join(CROSSINGS)}, got {self.crossings!r}")
+        if self.depth_phase not in DEPTH_PHASES:
+            raise ValueError(f"depth_phase must be one of {', '.join(DEPTH_PHASES)}, got {self.depth_phase!r}")
 
 
 Material = Union[Diffuse, Principled, Glossy, Emission, ScratchedMetal, Dielectric, Translucent, Transparent, Mix,

@@ -74,6 +74,8 @@ class SCRATCH_PT_scratch_render(_ObjectPanel, bpy.types.Panel):
         layout.prop(settings, "coherence_diameter_um")
         layout.prop(settings, "coherent")
         layout.prop(settings, "diffuse_reflectance")
+        layout.prop(settings, "crossings")
+        layout.prop(settings, "depth_phase")
 
 
 class SCRATCH_PT_scratch_overlay(_ObjectPanel, bpy.types.Panel):

@@ -28,7 +28,22 @@ BASE_MATERIALS = (
 #: Depth phase per unit depth: "kirchhoff" 2π(γ_i + γ_o)/λ (docs/model.md §2) or "incidence" 4πγ_i/λ.
 DEFAULT_DEPTH_PHASE = "kirchhoff"
 DEPTH_PHASES = ("kirchhoff", "incidence")
+#: (code, label, description) of the depth phases offered in the user interface.
+DEPTH_PHASE_ITEMS = (
+    ("kirchhoff", "Kirchhoff", "The paper's phase 2π(γi + γo)D/λ: reciprocal; deep scratches (D, W of "
+                               "several µm) reflect up to 40 % more than falls on them"),
+    ("incidence", "Incidence", "Phase 4πγi·D/λ: never reflects more than falls on it, but not reciprocal "
+                               "(docs/bsdf.md, Energy)"),
+)
 #: Where rectangular scratches cross: "additive" sums their transfer functions (the paper, docs/model.md §2),
 #: "height_field" gives the overlap the deeper one's depth (docs/model.md §3.4).
 DEFAULT_CROSSINGS = "additive"
 CROSSINGS = ("additive", "height_field")
+#: (code, label, description) of the crossing treatments offered in the user interface.
+CROSSING_ITEMS = (
+    ("additive", "Additive", "Overlapping scratches add their effects, as in the paper: a crossing "
+                             "counts both depths"),
+    ("height_field", "Height Field", "Where two rectangular scratches cross, the deeper one wins, as on a "
+                                     "real surface (slower on heavily crossed sets; triple overlaps, "
+                                     "V-grooves and nearly parallel overlaps stay additive)"),
+)

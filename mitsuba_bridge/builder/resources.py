@@ -207,7 +207,8 @@ class ToFolder:
 
 def _scratch_settings(material: ScratchedMetal) -> dict:
     settings = dict(coherence_diameter=material.coherence_diameter_m, unit_scale=material.metres_per_unit,
-                    material=material.material, coherent=material.coherent)
+                    material=material.material, coherent=material.coherent, crossings=material.crossings,
+                    depth_phase=material.depth_phase)
     if material.diffuse_reflectance is not None and any(c > 0 for c in material.diffuse_reflectance):
         settings["diffuse_reflectance"] = {"type": "rgb", "value": [float(c) for c in material.diffuse_reflectance]}
     return settings

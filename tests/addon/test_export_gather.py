@@ -335,6 +335,8 @@ def test_scratched_object_carries_its_scratches_and_settings(staged):
     plane.scratch_iridescence.coherence_diameter_um = 40.0  # physical: the centimetre scene unit does not matter
     plane.scratch_iridescence.coherent = False
     plane.scratch_iridescence.diffuse_reflectance = (0.1, 0.0, 0.0)
+    plane.scratch_iridescence.crossings = "height_field"
+    plane.scratch_iridescence.depth_phase = "incidence"
     description = gather(staged)
     (shape,) = description.shapes
     metal = description.materials[shape.material]
@@ -343,6 +345,7 @@ def test_scratched_object_carries_its_scratches_and_settings(staged):
     assert metal.material == "Au" and metal.coherent is False and metal.metres_per_unit == pytest.approx(0.01)
     assert metal.coherence_diameter_m == pytest.approx(40e-6)
     assert metal.diffuse_reflectance == pytest.approx((0.1, 0.0, 0.0))
+    assert (metal.crossings, metal.depth_phase) == ("height_field", "incidence")
 
 
 def test_scratched_object_without_uvs_renders_unscratched_with_a_warning(staged):

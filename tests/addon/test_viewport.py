@@ -170,6 +170,8 @@ def test06_light_world_and_material_values_update_in_place(studio, updates_of):
 def test07_scratch_material_settings_update_the_bsdf(studio, updates_of):
     updates = updates_of(lambda: setattr(studio.plane.scratch_iridescence, "coherent", not studio.plane.scratch_iridescence.coherent))
     assert [u.kind for u in updates] == ["material"]
+    updates = updates_of(lambda: setattr(studio.plane.scratch_iridescence, "crossings", "height_field"))
+    assert [u.kind for u in updates] == ["material"] and updates[0].args[1].crossings == "height_field"
 
 
 def test08_edits_without_a_cheaper_form_rebuild(studio, updates_of):

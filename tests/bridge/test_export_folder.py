@@ -170,3 +170,20 @@ def test10_loading_a_folder_leaves_the_working_directory_alone(variant, tmp_path
     scene = export.load_folder(tmp_path / "out")
     assert os.getcwd() == str(elsewhere)
     assert "scratches=20," in str(scene.shapes()[0].bsdf())
+
+
+def test11_plugin_options_travel_through_the_exported_folder(variant, tmp_path):
+    """``crossings`` and ``depth_phase`` reach scene.xml and the BSDF loaded from it (defaults stay unwritten)."""
+    import dataclasses
+
+    description = scratched_scene(20, seed=4)
+    metal = dataclasses.replace(description.materials["plate"], crossings="height_field", depth_phase="incidence")
+    export.export_folder(dataclasses.replace(description, materials={"plate": metal}), S.RenderSettings(spp=4),
+                         tmp_path / "options")
+    text = (tmp_path / "options" / "scene.xml").read_text()
+    assert '<string name="crossings" value="height_field"/>' in text
+    assert '<string name="depth_phase" value="incidence"/>' in text
+    loaded = str(export.load_folder(tmp_path / "options").shapes()[0].bsdf())
+    assert "crossings=height_field" in loaded and "depth_phase=incidence" in loaded
+    export.export_folder(description, S.RenderSettings(spp=4), tmp_path / "defaults")
+    assert "crossings" not in (tmp_path / "defaults" / "scene.xml").read_text()

@@ -143,6 +143,19 @@ def test09_metal_settings_update_in_place(session):
     assert np.array_equal(image, rebuilt_image(dataclasses.replace(plate_scene(), materials={"scratched": metal})))
 
 
+def test09b_crossing_and_depth_phase_options_rebuild_the_bsdf(session):
+    """Plugin options no traversed parameter expresses: a rebuild, whose image is the rebuilt scene's."""
+    metal = dataclasses.replace(session.description.materials["scratched"], crossings="height_field",
+                                depth_phase="incidence")
+    session.set_material("scratched", metal)
+    image = finish(session).image
+    assert session.stats["rebuilds"] == 1
+    assert "crossings=height_field" in str(session._scene.shapes()[0].bsdf())
+    assert np.array_equal(image, rebuilt_image(dataclasses.replace(plate_scene(), materials={"scratched": metal})))
+    with pytest.raises(ValueError, match="crossings must be one of"):
+        dataclasses.replace(metal, crossings="deepest")
+
+
 def test10_progressive_image_converges_to_the_final_render_at_equal_spp(variant):
     """Session and F12 path (other seeds) estimate the same image: their pixel differences average to 0."""
     spp = 32

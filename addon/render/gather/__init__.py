@@ -152,4 +152,5 @@ def scratched_metal(obj, scene, has_uvs: bool, warnings: Warnings) -> ScratchedM
     diffuse = tuple(float(c) for c in settings.diffuse_reflectance)
     return ScratchedMetal(scratches=scratches, coherence_diameter_m=float(settings.coherence_diameter_um) * 1e-6,
                           metres_per_unit=metres_per_unit, material=settings.base_material, coherent=bool(settings.coherent),
-                          diffuse_reflectance=diffuse if any(diffuse) else None)
+                          diffuse_reflectance=diffuse if any(diffuse) else None, crossings=settings.crossings,
+                          depth_phase=settings.depth_phase)
