@@ -118,7 +118,8 @@ def test06_object_panel_shows_count_summary_buttons_and_settings(scratched_plane
     assert {"scratch.generate", "scratch.clear", "scratch.import_file", "scratch.export_file"} <= set(layout.shown)
     layout = Layout()
     panels.SCRATCH_PT_scratch_render.draw(SimpleNamespace(layout=layout), context)
-    assert layout.shown == ["base_material", "coherence_diameter_um", "coherent", "diffuse_reflectance"]
+    assert layout.shown == ["base_material", "coherence_diameter_um", "coherent", "diffuse_reflectance", "crossings",
+                            "depth_phase"]
     layout = Layout()
     panels.SCRATCH_PT_scratch_overlay.draw_header(SimpleNamespace(layout=layout), context)
     panels.SCRATCH_PT_scratch_overlay.draw(SimpleNamespace(layout=layout), context)
