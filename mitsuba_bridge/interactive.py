@@ -188,7 +188,6 @@ class Session:
         self._strip = 0  #: the next strip of the current pass
         self._plan = (False, 1)
         self._sum = None
-        self._shown = None
         self._spp_done = 0
         self._started = time.perf_counter()
         self._finished = False
@@ -418,11 +417,13 @@ class Session:
         return self._finished
 
     def step(self, seconds: float = 0.0) -> Progress:
-        """Render passes for up to ``seconds`` (at least one, unless finished) and return the running image.
+        """Render for up to ``seconds`` (at least one render, unless finished) and return the running image.
 
         The returned ``Progress`` holds the full-size (H, W, 4) image (an enlarged
         preview until the first full-resolution pass), the full-resolution
-        samples done and ``samples`` as the total.
+        samples done and ``samples`` as the total.  One render is the preview,
+        a whole pass, or on the CPU one strip of a pass: the image (and the
+        ``Progress`` object returned) changes only when a pass is complete.
         """
         if self._closed:
             raise RuntimeError("the session is closed")
@@ -458,24 +459,23 @@ class Session:
         self._index += 1
         width, height = self.description.film.size
         if preview:
-            self._shown = _enlarge(image, height, width)
+            shown = _enlarge(image, height, width)
             self._pass_index += 1
         else:
             if self._sum is None:
                 self._sum = np.zeros((height, width, image.shape[2]), np.float32)
-            if self._shown is None:  # no preview: rows not rendered yet stay black
-                self._shown = np.zeros_like(self._sum)
             top = self._strip * self._windows[0][3]
             bottom = min(height, top + image.shape[0])
             self._sum[top:bottom] += image[:bottom - top] * spp
-            self._shown[top:bottom] = self._sum[top:bottom] / (self._spp_done + spp)
             self._strip = (self._strip + 1) % strips
-            if self._strip == 0:
-                self._spp_done += spp
-                self._pass_index += 1
-                self._finished = self._spp_done >= self.samples
+            if self._strip:
+                return  # the image changes when the pass is complete (no seams of unequal noise)
+            self._spp_done += spp
+            self._pass_index += 1
+            self._finished = self._spp_done >= self.samples
+            shown = self._sum / self._spp_done  # a new array: images handed out never change
         self._latest = Progress(self._index, self._spp_done, self.samples, time.perf_counter() - self._started,
-                                shown=self._shown.copy())
+                                shown=shown)
 
     @property
     def showing_preview(self) -> bool:

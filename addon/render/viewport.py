@@ -220,7 +220,7 @@ class ViewportRender:
 
     # ------------------------------------------------------------------ worker thread
     def _run(self) -> None:
-        session, linger = None, False
+        session, linger, posted = None, False, None
         try:
             while True:
                 with self._lock:
@@ -236,12 +236,15 @@ class ViewportRender:
                     if session is not None and not session.finished:
                         progress = session.step(0.0)
                         linger = session.showing_preview
-                        rect = combined_rect(progress.image, session.description.film.transparent).ravel()
-                        with self._lock:
-                            self._latest, self._rect, self._version = progress, rect, self._version + 1
-                            self._crop = session.description.film.crop
-                            self._finished, self._error = session.finished, None
-                            self._stats = session.stats
+                        # a strip of a CPU pass leaves the image as it was: nothing new to convert and post
+                        if progress is not None and progress is not posted:
+                            posted = progress
+                            rect = combined_rect(progress.image, session.description.film.transparent).ravel()
+                            with self._lock:
+                                self._latest, self._rect, self._version = progress, rect, self._version + 1
+                                self._crop = session.description.film.crop
+                                self._finished, self._error = session.finished, None
+                                self._stats = session.stats
                 except Exception as error:
                     traceback.print_exc()
                     if session is not None:

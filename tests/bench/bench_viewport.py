@@ -16,8 +16,9 @@ Targets (issue 14) on the 2-core CPU: stroke → first updated image ≤ 0.2 s,
 ≥ 5 full-resolution 1-spp passes/s, main-thread blocking ≤ 50 ms.
 
 Run: ``.venv/bin/python tests/bench/bench_viewport.py [--moves 50 --strokes 20]``; ``--full-builds``
-rebuilds the whole scratch tables on every stroke (the reference for ``bsdf/incremental.py``: run
-both back to back and compare the stroke figures).
+rebuilds the whole scratch tables on every stroke (the reference for ``bsdf/incremental.py``),
+``--strip-pixels 0`` renders whole passes instead of strips (the reference for the strips): run
+them back to back and compare.
 """
 from __future__ import annotations
 
@@ -89,7 +90,13 @@ def main():
     parser.add_argument("--no-freeze", action="store_true", help="trace every pass (no dr.freeze)")
     parser.add_argument("--full-builds", action="store_true",
                         help="rebuild the whole scratch tables on each stroke (the reference for bsdf/incremental.py)")
+    parser.add_argument("--strip-pixels", type=int, default=None,
+                        help="pixels per strip of a CPU pass (0: whole passes, the reference for the strips)")
     args = parser.parse_args()
+    if args.strip_pixels is not None:
+        from scratch_iridescence.mitsuba_bridge import interactive
+
+        interactive.CPU_STRIP_PIXELS = args.strip_pixels
     if args.full_builds:
         from scratch_iridescence.mitsuba_bridge.bsdf import incremental, plugin
 

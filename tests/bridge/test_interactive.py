@@ -253,25 +253,24 @@ def test15_strip_windows_cover_the_window_with_equal_strips():
     assert interactive.strip_windows(S.Film(4, 3), 1) == [(0, k, 4, 1) for k in range(3)]
 
 
-def test16_strips_refine_row_bands_and_reproduce_exactly(variant):
-    """Five strips a pass: the rows above the strip in flight show one more sample; reruns are identical."""
-    def run(passes_after_preview):
+def test16_strips_complete_a_pass_before_the_image_changes_and_reproduce_exactly(variant):
+    """Five strips a pass: the preview stays until all five are done; reruns give the same images."""
+    def run(renders):
         session = interactive.Session(plate_scene(), SETTINGS, samples=SAMPLES, strip_pixels=64 * 10)
-        images = [session.step(0.0).image]
-        assert session.showing_preview
-        for _ in range(passes_after_preview):
-            images.append(session.step(0.0).image)
+        results = [session.step(0.0)]
+        assert session.showing_preview and session.stats["strips"] == 5
+        for _ in range(renders):
+            results.append(session.step(0.0))
         stats = session.stats
         session.close()
-        return images, stats
-    images, stats = run(7)
-    assert stats["spp_done"] == 1 and stats["passes"] == 8  # preview, 5 strips (one pass), two strips
-    preview = images[0]
-    assert np.array_equal(images[1][10:], preview[10:]) and not np.array_equal(images[1][:10], preview[:10])
-    assert np.array_equal(images[5][:10], images[4][:10])  # rows of earlier strips stay until their next sample
-    assert not np.array_equal(images[6][:10], images[5][:10]) and np.array_equal(images[6][10:], images[5][10:])
-    again, _ = run(7)
-    assert all(np.array_equal(a, b) for a, b in zip(images, again))
+        return results, stats
+    results, stats = run(10)
+    assert stats["passes"] == 11 and stats["spp_done"] == 2  # preview, then two passes of five strips
+    assert all(result is results[0] for result in results[1:5])  # strips of the first pass: still the preview
+    assert results[5].spp_done == 1 and not np.array_equal(results[5].image, results[0].image)
+    assert all(result is results[5] for result in results[6:10]) and results[10].spp_done == 2
+    again, _ = run(10)
+    assert all(np.array_equal(a.image, b.image) for a, b in zip(results, again))
 
 
 def test17_strips_estimate_the_whole_pass_image(variant):
