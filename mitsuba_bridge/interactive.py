@@ -165,8 +165,8 @@ class Session:
             camera, film = builder.window_camera(description.camera, description.film, self._windows[0])
             scene_dict["sensor-strip"] = builder.sensor_dict(camera, film, self.settings)
         # Mitsuba lists the sensors in the dictionary's order.
-        self._sensor_index = {key: index for index, key in
-                              enumerate(key for key in scene_dict if key in ("sensor", "sensor-preview", "sensor-strip"))}
+        sensors = [key for key in scene_dict if key in ("sensor", "sensor-preview", "sensor-strip")]
+        self._sensor_index = {key: index for index, key in enumerate(sensors)}
         # scene_dict adds "shape-…" entries in the order of description.shapes, nothing else starts so.
         self._shape_keys = [key for key in scene_dict if key.startswith("shape-")]
         self._scene = mi.load_dict(scene_dict)
@@ -489,8 +489,8 @@ class Session:
         ``spp_done``, ``samples``, ``strips`` (per full-resolution pass), ``frozen``, ``freeze_failure``,
         ``recordings``."""
         return {**self._stats, "kernels_compiled": self._counter.compiled, "spp_done": self._spp_done,
-                "samples": self.samples, "strips": len(self._windows), "frozen": self._render.enabled, "freeze_failure": self._render.failure,
-                "recordings": self._render.recordings}
+                "samples": self.samples, "strips": len(self._windows), "frozen": self._render.enabled,
+                "freeze_failure": self._render.failure, "recordings": self._render.recordings}
 
     def close(self) -> None:
         """Release the scene and restore Dr.Jit's kernel-history flag; the session cannot render afterwards."""

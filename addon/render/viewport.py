@@ -6,10 +6,12 @@ draws the newest image.  It never waits for Mitsuba: posting takes a lock
 held only for list swaps.  Worker thread: applies the posted updates to its
 :class:`mitsuba_bridge.interactive.Session` between passes (a pending full
 build drops the updates queued before it; only the last camera counts) and
-renders one pass at a time until the session has its samples, then sleeps
-until the next update.  After a preview it waits ``LINGER_SECONDS`` for the
-next change, so that continuous orbiting shows previews, not stale full passes.  The image on screen stays until a newer one exists,
-also while a rebuild compiles.
+renders one pass (on the CPU one strip of a pass) at a time until the session
+has its samples, then sleeps until the next update; it posts an image when a
+pass is complete.  After a preview it waits ``LINGER_SECONDS`` for the next
+change, so that continuous orbiting shows previews, not stale full passes.
+The image on screen stays until a newer one exists, also while a rebuild
+compiles.
 
 Only a real window exercises the drawing (``gpu`` raises in background mode):
 :meth:`ViewportRender.draw` uploads the image as an ``RGBA16F`` texture and

@@ -16,8 +16,8 @@ from .materials import add_weights, bsdf_dict, emitter_dict
 from .resources import InMemory, ToFolder, safe_name
 from .transform import to_mitsuba
 
-__all__ = ["scene_dict", "load_scene", "InMemory", "ToFolder", "sensor_dict", "film_dict", "integrator_dict", "window_camera",
-           "bsdf_dict", "emitter_dict", "add_weights", "light_dict", "world_dict", "material_id",
+__all__ = ["scene_dict", "load_scene", "InMemory", "ToFolder", "sensor_dict", "film_dict", "integrator_dict",
+           "window_camera", "bsdf_dict", "emitter_dict", "add_weights", "light_dict", "world_dict", "material_id",
            "MIN_INSTANCES"]
 
 #: Shapes showing one mesh with one material at least this often share it through a ``shapegroup``.

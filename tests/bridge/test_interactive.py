@@ -238,8 +238,8 @@ def test14_window_camera_sees_the_frame_pixels_of_its_window(variant, camera, cr
         x, y, w, h = window
         i, j = np.meshgrid(np.arange(w) + 0.25, np.arange(h) + 0.75)
         rays = {}
-        for name, which, position in (("window", sensor, (i / w, j / h)), ("frame", full, ((x + i) / 64, (y + j) / 48))):
-            ray, _ = which.sample_ray(0.0, 0.5, mi.Point2f(position[0].ravel(), position[1].ravel()), mi.Point2f(0.5))
+        for name, which, (u, v) in (("window", sensor, (i / w, j / h)), ("frame", full, ((x + i) / 64, (y + j) / 48))):
+            ray, _ = which.sample_ray(0.0, 0.5, mi.Point2f(u.ravel(), v.ravel()), mi.Point2f(0.5))
             rays[name] = np.array(ray.o), np.array(ray.d)
         np.testing.assert_allclose(rays["window"][0], rays["frame"][0], atol=2e-5)
         np.testing.assert_allclose(rays["window"][1], rays["frame"][1], atol=2e-5)
