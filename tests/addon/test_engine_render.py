@@ -325,3 +325,26 @@ def test_missing_texture_renders_magenta_with_a_warning(recording, empty_scene, 
     red, green, blue = render_to(empty_scene, tmp_path / "lost.exr")[..., :3].mean(axis=(0, 1))
     assert red > 0.5 and blue > 0.5 and green < 0.1 * red
     assert any("missing" in message and "gone" in message for _, message in recording.reports)
+
+
+def test_ctrl_c_in_blenders_terminal_cancels_and_keeps_the_chunks_before(recording, lit, tmp_path, monkeypatch):
+    """Mitsuba's SIGINT handler stops the chunk it is in (render.RenderInterrupted, as `should_stop()` says):
+    F12 ends as cancelled with the chunks before it, never with the stopped chunk's partial samples."""
+    from scratch_iridescence.mitsuba_bridge import render as passes
+
+    real, calls = passes.render_whole, []
+
+    def interrupted_on_the_third_chunk(scene, **arguments):
+        calls.append(arguments["spp"])
+        if len(calls) == 3:
+            raise passes.RenderInterrupted("Mitsuba stopped the render early (interrupted)")
+        return real(scene, **arguments)
+
+    monkeypatch.setattr(passes, "render_whole", interrupted_on_the_third_chunk)
+    lit.render.engine = RecordingEngine.bl_idname
+    lit.scratch_iridescence.samples = 67
+    image = render_to(lit, tmp_path / "interrupted.exr")
+    assert len(calls) == 3 and recording.progress == pytest.approx([4 / 67, 8 / 67])
+    assert image[..., :3].mean() > 0.1
+    assert any("cancelled" in message for _, message in recording.reports)
+    assert not any("ERROR" in levels for levels, _ in recording.reports)
