@@ -65,12 +65,12 @@ def _interval_on_line(line: Strip, level, other: Strip):
 
 
 def clipped_cell(strips, cx, cy, xi_x, xi_y, sigma) -> Cx:
-    """``∫_Ω w(x) e^{-2πiξ·x} dx`` over the intersection Ω of three strips around the cell centre ``c``.
+    """``∫_Ω w(x) e^{-2πiξ·x} dx`` over the intersection Ω of strips around the cell centre ``c``.
 
     Parameters
     ----------
     strips:
-        Three :class:`Strip` (offsets relative to ``c``), no two parallel.
+        Three or more :class:`Strip` (offsets relative to ``c``), no two parallel.
     cx, cy:
         The cell centre relative to the shading point x0 (µm).
     xi_x, xi_y:
@@ -99,9 +99,9 @@ def clipped_cell(strips, cx, cy, xi_x, xi_y, sigma) -> Cx:
     flux_re, flux_im = zero, zero
     area, first_x, first_y, second, perimeter = 0.0, 0.0, 0.0, 0.0, 0.0
     terms = []
-    for s in range(3):
+    for s in range(len(strips)):
         line = strips[s]
-        others = [strips[r] for r in range(3) if r != s]
+        others = [strips[r] for r in range(len(strips)) if r != s]
         for sign in (1.0, -1.0):
             level = line.offset + sign * line.half_width
             lo = hi = None

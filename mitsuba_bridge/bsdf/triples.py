@@ -40,7 +40,11 @@ from .overlap import Parallelogram, cell_centre, parallelogram
 from .polygon import Strip, clipped_cell
 from .segment import SegmentGeometry
 
-__all__ = ["add_triples"]
+__all__ = ["add_triples", "MAX_ORDER"]
+
+#: Highest overlap order corrected: pairs (overlap.py), triples and quadruples (here).  Fivefold
+#: overlaps stay uncorrected (docs/model.md §3.4 bounds them).
+MAX_ORDER = 4
 
 
 def _angle(segment: SegmentGeometry):
@@ -58,40 +62,52 @@ def _uv_direction(grid: Grid, piece, active):
 
 def add_triples(grid: Grid, jac: LocalJacobian, first: SegmentGeometry, second: SegmentGeometry, first_piece,
                 second_piece, crossing_uv, xi_x, xi_y, k_z, sigma, field: tuple) -> tuple:
-    """``field`` plus the triple terms of the crossing pair (``first``, ``second``) (module docstring).
+    """``field`` plus the triple and quadruple terms of the crossing pair (``first``, ``second``).
 
-    ``field`` is a pair (re, im) of spectra; ``crossing_uv`` the crossing point of the pair's centre lines (UV).
+    ``field`` is a pair (re, im) of spectra; ``crossing_uv`` the crossing point of the pair's centre lines
+    (UV).  See the module docstring.
     """
     shape = parallelogram(first, second, sigma)
     half_diagonal = 0.5 * (dr.norm(mi.Vector2f(shape.e1x, shape.e1y)) * shape.n1
                            + dr.norm(mi.Vector2f(shape.e2x, shape.e2y)) * shape.n2)
+    # every strip meeting P passes within this of the crossing point (1 % and 10 nm for float32 UV)
     radius = 1.01 * (half_diagonal + 0.5 * grid.max_width) + 0.01
     around = LocalJacobian(uv=crossing_uv, j00=jac.j00, j01=jac.j01, j10=jac.j10, j11=jac.j11)
-    lowest = dr.maximum(_angle(first), _angle(second))
-    first_u, first_v = _uv_direction(grid, first_piece, True)
-    second_u, second_v = _uv_direction(grid, second_piece, True)
     spectrum = type(xi_x)
 
-    def third(near: SegmentGeometry, piece, field):
-        # the piece holding the foot point of the crossing on its centre line, rectangular
-        foot = -near.c
-        usable = (foot >= 0.0) & (foot < near.length) & ~near.triangular
-        other = segment_at(grid, jac, piece, usable)
-        usable &= _angle(other) > lowest
-        u, v = _uv_direction(grid, piece, usable)
-        usable &= (dr.abs(first_u * v - first_v * u) >= MIN_SINE) & (dr.abs(second_u * v - second_v * u) >= MIN_SINE)
-        usable &= _meets(shape, other)
-        integral = _triple_integral(shape, first, second, other, usable, xi_x, xi_y, sigma)
-        shallow = k_z * dr.minimum(dr.minimum(first.depth, second.depth), other.depth)
-        term = (expi(shallow) - 1.0) * integral
-        return spectrum(field[0] + term.re), spectrum(field[1] + term.im)
+    def extend(lines, directions, floor, active, field):
+        """Add the terms of every overlap of ``lines`` and one more line of angle above ``floor``."""
+        order = len(lines) + 1
 
-    return for_each_segment(grid, around, radius, field, third, mi.Bool(True))
+        def visit(near: SegmentGeometry, piece, field):
+            # the piece holding the foot point of the crossing on its centre line, rectangular
+            foot = -near.c
+            usable = (foot >= 0.0) & (foot < near.length) & ~near.triangular
+            other = segment_at(grid, jac, piece, usable)
+            angle = _angle(other)
+            usable &= angle > floor
+            u, v = _uv_direction(grid, piece, usable)
+            for du, dv in directions:  # every pair of the overlap is one the tables correct
+                usable &= dr.abs(du * v - dv * u) >= MIN_SINE
+            usable &= _meets(shape, other)
+            overlap = lines + [other]
+            integral = _overlap_integral(shape, overlap, usable, xi_x, xi_y, sigma)
+            shallow = overlap[0].depth
+            for line in overlap[1:]:
+                shallow = dr.minimum(shallow, line.depth)
+            # Möbius inversion: (-1)^{order+1} (e^{iκ_min} - 1) ∫ over the order-fold overlap
+            term = (expi(k_z * shallow) - 1.0) * integral * (1.0 if order % 2 else -1.0)
+            field = spectrum(field[0] + term.re), spectrum(field[1] + term.im)
+            if order < MAX_ORDER:
+                field = extend(overlap, directions + [(u, v)], angle, usable, field)
+            return field
 
+        return for_each_segment(grid, around, radius, field, visit, active)
 
-def _strip_reach(shape: Parallelogram, nx, ny):
-    """Half the spread of ``n·x`` over one cell of the parallelogram."""
-    return 0.5 * (dr.abs(nx * shape.e1x + ny * shape.e1y) + dr.abs(nx * shape.e2x + ny * shape.e2y))
+    first_direction = _uv_direction(grid, first_piece, True)
+    second_direction = _uv_direction(grid, second_piece, True)
+    return extend([first, second], [first_direction, second_direction],
+                  dr.maximum(_angle(first), _angle(second)), mi.Bool(True), field)
 
 
 def _meets(shape: Parallelogram, other: SegmentGeometry):
@@ -102,10 +118,15 @@ def _meets(shape: Parallelogram, other: SegmentGeometry):
     return distance <= 0.5 * (reach + other.width)
 
 
-def _triple_integral(shape: Parallelogram, first, second, other, usable, xi_x, xi_y, sigma) -> Cx:
-    """``∫_T w e^{-2πiξ·x}`` over the cells of ``shape`` that the strip of ``other`` touches."""
-    nx, ny = -other.dy, other.dx
-    reach = _strip_reach(shape, nx, ny) + 0.5 * other.width
+def _overlap_integral(shape: Parallelogram, lines, usable, xi_x, xi_y, sigma) -> Cx:
+    """``∫ w e^{-2πiξ·x}`` over the overlap of ``lines``' strips, the first two those of ``shape``.
+
+    Only the cells of ``shape`` that every further strip reaches are integrated (:func:`.polygon.clipped_cell`).
+    """
+    first, second, extra = lines[0], lines[1], lines[2:]
+    normals = [(-line.dy, line.dx) for line in extra]
+    reaches = [0.5 * (dr.abs(nx * shape.e1x + ny * shape.e1y) + dr.abs(nx * shape.e2x + ny * shape.e2y)
+                      + line.width) for (nx, ny), line in zip(normals, extra)]
     cells = dr.select(usable, mi.UInt32(shape.n1 * shape.n2), 0)
     columns = dr.maximum(mi.UInt32(shape.n1), 1)
     half1 = 0.5 * first.width / shape.n1
@@ -113,23 +134,26 @@ def _triple_integral(shape: Parallelogram, first, second, other, usable, xi_x, x
 
     def misses(index):
         cx, cy = cell_centre(shape, index, columns)
-        return (index < cells) & (dr.abs(nx * cx + ny * cy - other.a_perp) > reach)
+        missed = dr.zeros(mi.Bool)
+        for (nx, ny), line, reach in zip(normals, extra, reaches):
+            missed |= dr.abs(nx * cx + ny * cy - line.a_perp) > reach
+        return (index < cells) & missed
 
     def skip(index):  # cheap: only the cell test, so lanes wait for each other on touched cells alone
-        return dr.while_loop((index,), misses, lambda index: (index + 1,), label="scratch_triple_skip")[0]
+        return dr.while_loop((index,), misses, lambda index: (index + 1,), label="scratch_overlap_skip")[0]
 
     def step(index, re, im):
         index = skip(index)
         cx, cy = cell_centre(shape, index, columns)
-        strips = (Strip(-first.dy, first.dx, 0.0, half1), Strip(-second.dy, second.dx, 0.0, half2),
-                  Strip(nx, ny, other.a_perp - (nx * cx + ny * cy), 0.5 * other.width))
+        strips = [Strip(-first.dy, first.dx, 0.0, half1), Strip(-second.dy, second.dx, 0.0, half2)]
+        strips += [Strip(nx, ny, line.a_perp - (nx * cx + ny * cy), 0.5 * line.width)
+                   for (nx, ny), line in zip(normals, extra)]
         term = clipped_cell(strips, cx, cy, xi_x, xi_y, sigma)
         inside = index < cells
         return (index + 1, type(xi_x)(dr.select(inside, re + term.re, re)),
                 type(xi_x)(dr.select(inside, im + term.im, im)))
 
     zero = dr.zeros(type(xi_x))
-    start = skip(mi.UInt32(0))
-    _, re, im = dr.while_loop((start, zero, zero), lambda index, re, im: index < cells, step,
-                              label="scratch_triple_cells")
+    _, re, im = dr.while_loop((skip(mi.UInt32(0)), zero, zero), lambda index, re, im: index < cells, step,
+                              label="scratch_overlap_cells")
     return Cx(re, im)
