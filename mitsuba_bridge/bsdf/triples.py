@@ -44,7 +44,7 @@ __all__ = ["add_triples", "MAX_ORDER"]
 
 #: Highest overlap order corrected: pairs (overlap.py), triples and quadruples (here).  Fivefold
 #: overlaps stay uncorrected (docs/model.md §3.4 bounds them).
-MAX_ORDER = 4
+MAX_ORDER = 5
 
 
 def _angle(segment: SegmentGeometry):

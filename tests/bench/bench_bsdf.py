@@ -20,13 +20,16 @@ Crossings (issue 12 item 1): ``--crossings`` times ``eval`` with ``crossings =
 G_W[4, 1.3] µm on a 10 cm plate) and on a worn plate (30 000 scratches,
 U_W[0.5, 6] µm), at shading points on the scratches (every lane has pieces in
 its window), alternately, as the ratio of the two; with the table build time
-and the number of crossing pairs.
+and the number of crossing pairs.  ``height_field`` is timed twice: with its
+overlap terms of order 3 and more (triples.py, the plugin's behaviour) and
+with the pair terms alone (``Model.triples = False``, the version before them).
 
 Run: ``.venv/bin/python tests/bench/bench_bsdf.py [--dense] [--crossings]``.
 """
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import sys
 import time
@@ -231,6 +234,9 @@ def crossing_sets(args, rng):
             start = time.perf_counter()
             loaded[mode] = mi.load_dict(scratch_bsdf.plugin_dict(scratches, unit_scale=plate_m, crossings=mode))
             seconds[mode] = time.perf_counter() - start
+        pairs_only = mi.load_dict(scratch_bsdf.plugin_dict(scratches, unit_scale=plate_m, crossings="height_field"))
+        pairs_only.model = dataclasses.replace(pairs_only.model, triples=False)
+        loaded["pairs only"] = pairs_only
         tables = loaded["height_field"].tables
         pieces = tables.segments[rng.integers(0, tables.piece_count, n)].astype(np.float64)
         point = pieces[:, 0:2] + pieces[:, 2:4] + rng.random(n)[:, None] * pieces[:, 4:6]
@@ -255,7 +261,9 @@ def crossing_sets(args, rng):
         print(f"  {name:24s} {tables.crossing_count:7d} pairs ({tables.piece_count} pieces); load "
               f"{seconds['additive']:.2f} s / {seconds['height_field']:.2f} s; eval "
               f"{best['additive'] / n * 1e9:6.0f} ns / {best['height_field'] / n * 1e9:6.0f} ns per query "
-              f"= {best['height_field'] / best['additive']:.2f} x")
+              f"= {best['height_field'] / best['additive']:.2f} x; pairs only {best['pairs only'] / n * 1e9:6.0f} ns "
+              f"= {best['pairs only'] / best['additive']:.2f} x; with higher orders / pairs only "
+              f"{best['height_field'] / best['pairs only']:.2f} x")
 
 
 if __name__ == "__main__":
