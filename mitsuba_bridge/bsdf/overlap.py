@@ -72,8 +72,10 @@ class Parallelogram(NamedTuple):
     sine: object  #: sin θ = d_1 × d_2 (clamped away from 0)
 
 
-def parallelogram(first: SegmentGeometry, second: SegmentGeometry, sigma) -> Parallelogram:
-    """The overlap of the strips of ``first`` and ``second`` and its cells of at most σ/2 (module docstring)."""
+def parallelogram(first: SegmentGeometry, second: SegmentGeometry, sigma,
+                  sub_edge_sigmas: float = SUB_EDGE_SIGMAS) -> Parallelogram:
+    """The overlap of the strips of ``first`` and ``second`` and its cells of edges of at most
+    ``sub_edge_sigmas`` σ (and at most MAX_SPLIT per edge; module docstring)."""
     sine = first.dx * second.dy - first.dy * second.dx
     sine = dr.select(dr.abs(sine) > 1e-6, sine, 1e-6)
     inv_sine = dr.rcp(sine)
@@ -82,7 +84,7 @@ def parallelogram(first: SegmentGeometry, second: SegmentGeometry, sigma) -> Par
     py = (first.a_perp * second.dy - second.a_perp * first.dy) * inv_sine
     edge1 = first.width * dr.abs(inv_sine)
     edge2 = second.width * dr.abs(inv_sine)
-    sub_edge = SUB_EDGE_SIGMAS * sigma
+    sub_edge = sub_edge_sigmas * sigma
     # (at least 1: lanes without a partner divide by the column count too)
     n1 = dr.clip(dr.ceil(edge1 / sub_edge), 1.0, MAX_SPLIT)
     n2 = dr.clip(dr.ceil(edge2 / sub_edge), 1.0, MAX_SPLIT)

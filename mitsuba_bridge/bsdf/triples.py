@@ -40,11 +40,16 @@ from .overlap import Parallelogram, cell_centre, parallelogram
 from .polygon import Strip, clipped_cell
 from .segment import SegmentGeometry
 
-__all__ = ["add_triples", "MAX_ORDER"]
+__all__ = ["add_triples", "MAX_ORDER", "SLOTS"]
 
-#: Highest overlap order corrected: pairs (overlap.py), triples and quadruples (here).  Fivefold
-#: overlaps stay uncorrected (docs/model.md §3.4 bounds them).
+#: Highest overlap order corrected: pairs (overlap.py), then orders 3 .. MAX_ORDER here; higher
+#: orders stay uncorrected (docs/model.md §3.4 bounds them).
 MAX_ORDER = 5
+#: Third lines kept per crossing pair (more meeting one pair's parallelogram are left out).
+SLOTS = 4
+#: Cells of the overlaps of order 3 and more: edges of at most this many σ (the pairs' are σ/2): their
+#: curvature error, ~4× the pair cells', applies to terms that are a small part of the field.
+HIGHER_SUB_EDGE_SIGMAS = 0.5
 
 
 def _angle(segment: SegmentGeometry):
@@ -62,52 +67,94 @@ def _uv_direction(grid: Grid, piece, active):
 
 def add_triples(grid: Grid, jac: LocalJacobian, first: SegmentGeometry, second: SegmentGeometry, first_piece,
                 second_piece, crossing_uv, xi_x, xi_y, k_z, sigma, field: tuple) -> tuple:
-    """``field`` plus the triple and quadruple terms of the crossing pair (``first``, ``second``).
+    """``field`` plus the terms of order 3 to MAX_ORDER of the crossing pair (``first``, ``second``).
 
     ``field`` is a pair (re, im) of spectra; ``crossing_uv`` the crossing point of the pair's centre lines
-    (UV).  See the module docstring.
+    (UV).  One grid query keeps up to ``SLOTS`` third lines; every subset of them of at most
+    ``MAX_ORDER - 2`` lines whose pairs the tables all correct is one overlap.  See the module docstring.
     """
-    shape = parallelogram(first, second, sigma)
+    shape = parallelogram(first, second, sigma, HIGHER_SUB_EDGE_SIGMAS)
     half_diagonal = 0.5 * (dr.norm(mi.Vector2f(shape.e1x, shape.e1y)) * shape.n1
                            + dr.norm(mi.Vector2f(shape.e2x, shape.e2y)) * shape.n2)
     # every strip meeting P passes within this of the crossing point (1 % and 10 nm for float32 UV)
     radius = 1.01 * (half_diagonal + 0.5 * grid.max_width) + 0.01
     around = LocalJacobian(uv=crossing_uv, j00=jac.j00, j01=jac.j01, j10=jac.j10, j11=jac.j11)
+    floor = dr.maximum(_angle(first), _angle(second))
+    first_u, first_v = _uv_direction(grid, first_piece, True)
+    second_u, second_v = _uv_direction(grid, second_piece, True)
+
+    def keep(near: SegmentGeometry, piece, state):
+        count, *slots = state
+        # the piece holding the foot point of the crossing on its centre line, rectangular, of larger angle
+        foot = -near.c
+        usable = (foot >= 0.0) & (foot < near.length) & ~near.triangular
+        other = segment_at(grid, jac, piece, usable)
+        usable &= _angle(other) > floor
+        u, v = _uv_direction(grid, piece, usable)
+        usable &= (dr.abs(first_u * v - first_v * u) >= MIN_SINE) & (dr.abs(second_u * v - second_v * u) >= MIN_SINE)
+        usable &= _meets(shape, other) & (count < SLOTS)
+        slots = [dr.select(usable & (count == k), piece, slot) for k, slot in enumerate(slots)]
+        return (dr.select(usable, count + 1, count), *slots)
+
+    empty = tuple(dr.zeros(mi.UInt32) for _ in range(SLOTS + 1))
+    count, *slots = for_each_segment(grid, around, radius, empty, keep, mi.Bool(True))
+    # triples (the common case) with three strips per cell, then the higher orders with all of theirs
+    field = _add_subsets(grid, jac, shape, first, second, count, slots, 1, 1, xi_x, xi_y, k_z, sigma, field)
+    return _add_subsets(grid, jac, shape, first, second, count, slots, 2, MAX_ORDER - 2, xi_x, xi_y, k_z, sigma,
+                        field)
+
+
+def _add_subsets(grid, jac, shape, first, second, count, slots, smallest, largest, xi_x, xi_y, k_z, sigma, field):
+    """Add ``±(e^{iκ_min} - 1) ∫`` over the overlap of (first, second) with each valid subset of ``slots``
+    of ``smallest`` to ``largest`` lines."""
     spectrum = type(xi_x)
+    subsets = mi.UInt32(1) << count  # masks 1 .. 2^count - 1
 
-    def extend(lines, directions, floor, active, field):
-        """Add the terms of every overlap of ``lines`` and one more line of angle above ``floor``."""
-        order = len(lines) + 1
+    def chosen(mask):
+        """The pieces of ``mask`` (at most ``largest``; the rest repeat the first) and how many."""
+        picked = [dr.zeros(mi.UInt32) for _ in range(largest)]
+        size = dr.zeros(mi.UInt32)
+        for k, slot in enumerate(slots):
+            bit = (mask & (1 << k)) != 0
+            picked = [dr.select(bit & (size == j), slot, p) for j, p in enumerate(picked)]
+            size = dr.select(bit, size + 1, size)
+        return picked, size
 
-        def visit(near: SegmentGeometry, piece, field):
-            # the piece holding the foot point of the crossing on its centre line, rectangular
-            foot = -near.c
-            usable = (foot >= 0.0) & (foot < near.length) & ~near.triangular
-            other = segment_at(grid, jac, piece, usable)
-            angle = _angle(other)
-            usable &= angle > floor
-            u, v = _uv_direction(grid, piece, usable)
-            for du, dv in directions:  # every pair of the overlap is one the tables correct
-                usable &= dr.abs(du * v - dv * u) >= MIN_SINE
-            usable &= _meets(shape, other)
-            overlap = lines + [other]
-            integral = _overlap_integral(shape, overlap, usable, xi_x, xi_y, sigma)
-            shallow = overlap[0].depth
-            for line in overlap[1:]:
-                shallow = dr.minimum(shallow, line.depth)
-            # Möbius inversion: (-1)^{order+1} (e^{iκ_min} - 1) ∫ over the order-fold overlap
-            term = (expi(k_z * shallow) - 1.0) * integral * (1.0 if order % 2 else -1.0)
-            field = spectrum(field[0] + term.re), spectrum(field[1] + term.im)
-            if order < MAX_ORDER:
-                field = extend(overlap, directions + [(u, v)], angle, usable, field)
-            return field
+    def valid(mask):
+        picked, size = chosen(mask)
+        ok = (size >= smallest) & (size <= largest)
+        directions = [_uv_direction(grid, piece, True) for piece in picked]
+        for j in range(largest):
+            for k in range(j + 1, largest):
+                (uj, vj), (uk, vk) = directions[j], directions[k]
+                ok &= (k >= size) | (dr.abs(uj * vk - vj * uk) >= MIN_SINE)
+        return ok
 
-        return for_each_segment(grid, around, radius, field, visit, active)
+    def skip(mask):  # cheap: lanes wait for each other on valid subsets only
+        return dr.while_loop((mask,), lambda mask: (mask < subsets) & ~valid(mask), lambda mask: (mask + 1,),
+                             label="scratch_overlap_subsets")[0]
 
-    first_direction = _uv_direction(grid, first_piece, True)
-    second_direction = _uv_direction(grid, second_piece, True)
-    return extend([first, second], [first_direction, second_direction],
-                  dr.maximum(_angle(first), _angle(second)), mi.Bool(True), field)
+    def step(mask, re, im):
+        mask = skip(mask)
+        active = mask < subsets
+        picked, size = chosen(mask)
+        lines = [first, second]
+        shallow = dr.minimum(first.depth, second.depth)
+        for j, piece in enumerate(picked):
+            line = segment_at(grid, jac, piece, active & (size > j))
+            used = size > j
+            shallow = dr.select(used, dr.minimum(shallow, line.depth), shallow)
+            # an unused place: a strip a million µm wide along the first, which cuts nothing
+            lines.append(SegmentGeometry(*(dr.select(used, a, b) for a, b in zip(line, first._replace(width=2e6)))))
+        integral = _overlap_integral(shape, lines, active, xi_x, xi_y, sigma)
+        # Möbius inversion: (-1)^{order+1} (e^{iκ_min} - 1) ∫ over the overlap of order = size + 2
+        sign = dr.select((size & 1) == 1, 1.0, -1.0)
+        term = (expi(k_z * shallow) - 1.0) * integral * sign
+        return mask + 1, spectrum(dr.select(active, re + term.re, re)), spectrum(dr.select(active, im + term.im, im))
+
+    _, re, im = dr.while_loop((skip(mi.UInt32(1)), field[0], field[1]), lambda mask, re, im: mask < subsets, step,
+                              label="scratch_overlaps")
+    return re, im
 
 
 def _meets(shape: Parallelogram, other: SegmentGeometry):
