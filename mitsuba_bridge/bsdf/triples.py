@@ -1,29 +1,33 @@
-"""Triple overlaps of crossing rectangular pieces: the third term of the height field (docs/model.md §3.4).
+"""Overlaps of three to five crossing rectangular pieces: the higher orders of the height field (docs/model.md §3.4).
 
 The pair corrections of :mod:`.overlap` are the first two orders of an
 inclusion–exclusion over the scratches covering a point; where three strips
 overlap (region T) the third order adds back
 
-    C_3(ξ) = +(e^{iκ_min} - 1) ∫_T w(x) e^{-2πiξ·x} dx,      κ_min = k_z min(D_1, D_2, D_3).
+    C_3(ξ) = +(e^{iκ_min} - 1) ∫_T w(x) e^{-2πiξ·x} dx,      κ_min = k_z min(D_1, D_2, D_3),
 
-**Finding the triples (in the kernel).**  Whether three strips overlap depends
+the fourth subtracts the same over fourfold overlaps, the fifth adds again.
+
+**Finding the overlaps (in the kernel).**  Whether three strips overlap depends
 on their widths in µm, which the CPU cannot relate to UV (the Jacobian is the
 mesh's, per shading point), and listing every mutually crossing triple of
 pieces would cost far more than the pairs.  So, for each crossing pair (A, B)
-the kernel visits (:func:`.lookup.for_each_crossing`), a small query of the
+the kernel visits (:func:`.lookup.for_each_crossing`), one small query of the
 lookup grid around the crossing point (:func:`.lookup.for_each_segment`,
-radius: P's half diagonal plus half the widest scratch) finds the pieces C
-whose strip meets the parallelogram P_AB.  Each triple is counted once:
+radius: P's half diagonal plus half the widest scratch) keeps up to ``SLOTS``
+pieces C whose strip meets the parallelogram P_AB and that
 
-* C's piece is the one holding the foot point of the crossing on C's centre
-  line (a scratch cut into pieces counts once);
-* the triple belongs to the pair of its two lines of lowest direction angle
-  (mod π, in the local frame): C's angle exceeds A's and B's;
-* (A, C) and (B, C) must be pairs the tables correct: C rectangular,
-  |sin| >= ``crossings.MIN_SINE`` in UV against both.
+* hold the foot point of the crossing on their centre line (a scratch cut
+  into pieces counts once);
+* have a larger direction angle (mod π, local frame) than A and B: an overlap
+  belongs to the pair of its two lines of lowest angle, so it is counted once;
+* make pairs with A and B that the tables correct: rectangular, |sin| >=
+  ``crossings.MIN_SINE`` in UV.
 
-T ⊂ P_AB is integrated over the cells of P_AB (:func:`.overlap.parallelogram`,
-edges ≤ σ/2) that strip C touches, each cell ∩ strip C by
+Every subset of the kept lines whose own pairs the tables correct (|sin| in
+UV again) is one overlap of order 2 + its size, up to ``MAX_ORDER``.  Its
+region lies in P_AB: it is integrated over the cells of P_AB (edges ≤ σ/2)
+that every further strip reaches, each cell ∩ strips by
 :func:`.polygon.clipped_cell`.  Lengths in µm.
 """
 from __future__ import annotations
