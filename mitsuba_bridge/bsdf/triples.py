@@ -50,7 +50,7 @@ __all__ = ["add_triples", "MAX_ORDER", "SLOTS"]
 #: orders stay uncorrected (docs/model.md §3.4 bounds them).
 MAX_ORDER = 5
 #: Third lines kept per crossing pair (more meeting one pair's parallelogram are left out).
-SLOTS = 4
+SLOTS = 6
 #: Cells of the overlaps of order 3 and more: edges of at most this many σ (the pairs' are σ/2): their
 #: curvature error, ~4× the pair cells', applies to terms that are a small part of the field.
 HIGHER_SUB_EDGE_SIGMAS = 0.5
@@ -134,8 +134,11 @@ def _add_subsets(grid, jac, shape, first, second, count, slots, smallest, larges
                 ok &= (k >= size) | (dr.abs(uj * vk - vj * uk) >= MIN_SINE)
         return ok
 
+    def advance(mask):  # the single lines one by one (1, 2, 4, ...), else every mask
+        return mask << 1 if largest == 1 else mask + 1
+
     def skip(mask):  # cheap: lanes wait for each other on valid subsets only
-        return dr.while_loop((mask,), lambda mask: (mask < subsets) & ~valid(mask), lambda mask: (mask + 1,),
+        return dr.while_loop((mask,), lambda mask: (mask < subsets) & ~valid(mask), lambda mask: (advance(mask),),
                              label="scratch_overlap_subsets")[0]
 
     def step(mask, re, im):
@@ -154,9 +157,11 @@ def _add_subsets(grid, jac, shape, first, second, count, slots, smallest, larges
         # Möbius inversion: (-1)^{order+1} (e^{iκ_min} - 1) ∫ over the overlap of order = size + 2
         sign = dr.select((size & 1) == 1, 1.0, -1.0)
         term = (expi(k_z * shallow) - 1.0) * integral * sign
-        return mask + 1, spectrum(dr.select(active, re + term.re, re)), spectrum(dr.select(active, im + term.im, im))
+        return (advance(mask), spectrum(dr.select(active, re + term.re, re)),
+                spectrum(dr.select(active, im + term.im, im)))
 
-    _, re, im = dr.while_loop((skip(mi.UInt32(1)), field[0], field[1]), lambda mask, re, im: mask < subsets, step,
+    first_mask = mi.UInt32(1 if smallest == 1 else 3)
+    _, re, im = dr.while_loop((skip(first_mask), field[0], field[1]), lambda mask, re, im: mask < subsets, step,
                               label="scratch_overlaps")
     return re, im
 
