@@ -29,7 +29,7 @@ import mitsuba as mi
 from .complexmath import Cx, expi
 from .segment import SegmentGeometry
 
-__all__ = ["crossing_correction", "parallelogram", "scaled_sinc"]
+__all__ = ["Parallelogram", "cell_centre", "crossing_correction", "parallelogram", "scaled_sinc"]
 
 #: Below this |πz|² the complex sinc is its series 1 - (πz)²/6 (next term < 1e-9).
 _SERIES_BELOW = 1e-4

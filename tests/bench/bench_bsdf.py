@@ -48,7 +48,7 @@ def main():
     parser.add_argument("--dense", action="store_true", help="also time queries on the CD and the grating")
     parser.add_argument("--dense-lanes", type=int, default=1 << 17)
     parser.add_argument("--crossings", action="store_true", help="time crossings = height_field against additive")
-    parser.add_argument("--worn", action="store_true", help="with --crossings: the worn plate too (needs more than 23 GB)")
+    parser.add_argument("--worn", action="store_true", help="with --crossings: the worn plate too (> 23 GB)")
     args = parser.parse_args()
 
     import drjit as dr
