@@ -45,6 +45,7 @@ class Grid:
     crossing_start: object = None  #: mi.UInt32, CSR starts of each piece's crossing partners
     crossing_partner: object = None  #: mi.UInt32
     crossing_along: object = None  #: mi.Float, each crossing's parameter along its lower piece
+    max_width: object = None  #: opaque mi.Float: the widest piece's W (µm), the reach of a triple query
 
     @classmethod
     def upload(cls, tables: GridTables) -> "Grid":
@@ -62,7 +63,8 @@ class Grid:
             cells_v=dr.opaque(mi.Int32, tables.shape[1]),
             crossing_start=_owned(mi.UInt32, tables.crossing_start),
             crossing_partner=_owned(mi.UInt32, tables.crossing_partner),
-            crossing_along=_owned(mi.Float, tables.crossing_along))
+            crossing_along=_owned(mi.Float, tables.crossing_along),
+            max_width=dr.opaque(mi.Float, float(tables.segments[:tables.piece_count, 6].max(initial=0.0))))
 
 
 def _owned(kind, array):
@@ -214,7 +216,8 @@ def for_each_segment(grid: Grid, jac: LocalJacobian, radius, state: tuple,
 
 def for_each_crossing(grid: Grid, jac: LocalJacobian, piece, segment: SegmentGeometry, radius, state: tuple,
                       body: Callable) -> tuple:
-    """Fold ``body(partner: SegmentGeometry, state) -> state`` over the crossings of ``piece`` within ``radius``.
+    """Fold ``body(partner: SegmentGeometry, partner_piece, crossing_uv, state) -> state`` over the crossings
+    of ``piece`` within ``radius`` (``crossing_uv``: the mi.Point2f where the centre lines cross).
 
     The pairs are listed once, under the piece of lower index (:mod:`.crossings`),
     so folding this over every piece found by :func:`for_each_segment` visits
@@ -237,13 +240,17 @@ def for_each_crossing(grid: Grid, jac: LocalJacobian, piece, segment: SegmentGeo
         return dr.select(right, middle + 1, lo), dr.select(right, hi, middle)
 
     start = dr.while_loop((first, last), lambda lo, hi: lo < hi, bisect, label="scratch_crossing_search")[0]
+    head = dr.gather(mi.Vector4f, grid.segments, 2 * piece)
+    tail = dr.gather(mi.Vector4f, grid.segments, 2 * piece + 1)
 
     def inside(index, user):
         return (index < last) & (dr.gather(mi.Float, grid.crossing_along, index, index < last) <= t_hi)
 
     def step(index, user):
         partner = dr.gather(mi.UInt32, grid.crossing_partner, index)
-        return index + 1, body(segment_at(grid, jac, partner, True), user)
+        t = dr.gather(mi.Float, grid.crossing_along, index)
+        crossing_uv = mi.Point2f(dr.fma(t, tail.x, head.x) + head.z, dr.fma(t, tail.y, head.y) + head.w)
+        return index + 1, body(segment_at(grid, jac, partner, True), partner, crossing_uv, user)
 
     return dr.while_loop((start, state), inside, step, label="scratch_crossings")[1]
 

@@ -22,6 +22,7 @@ from .fresnel import fresnel_conductor
 from .lookup import Grid, for_each_crossing, for_each_segment, jacobian, segment_at
 from .overlap import crossing_correction
 from .segment import amplitude, frequencies
+from .triples import add_triples
 from .window import mirror_lobe
 
 __all__ = ["Model", "WINDOW_RADIUS_SIGMAS"]
@@ -48,6 +49,8 @@ class Model:
     depth_phase: str = "kirchhoff"  #: or "incidence" (docs/bsdf.md, Energy)
     #: correct crossings of rectangular pieces to the height field (docs/model.md §3.4; coherent mode)
     height_field: bool = False
+    #: with height_field: add the triple-overlap terms too (docs/model.md §3.4); off only to measure them
+    triples: bool = True
 
     # ------------------------------------------------------------- pieces
     def _reflectance(self, si, cos_theta, active):
@@ -110,9 +113,13 @@ class Model:
                 if coherent:
                     a, b = spectrum(a + s.re), spectrum(b + s.im)
                     if self.height_field:
-                        def add_crossing(partner, field):
+                        def add_crossing(partner, partner_piece, crossing_uv, field):
                             c = crossing_correction(segment, partner, xi_x, xi_y, k_z, sigma)
-                            return spectrum(field[0] + c.re), spectrum(field[1] + c.im)
+                            field = spectrum(field[0] + c.re), spectrum(field[1] + c.im)
+                            if self.triples:
+                                field = add_triples(self.grid, jac, segment, partner, piece, partner_piece,
+                                                    crossing_uv, xi_x, xi_y, k_z, sigma, field)
+                            return field
 
                         a, b = for_each_crossing(self.grid, jac, piece, segment, WINDOW_RADIUS_SIGMAS * sigma, (a, b),
                                                  add_crossing)

@@ -43,7 +43,7 @@ CROSSINGS = ("additive", "height_field")
 CROSSING_ITEMS = (
     ("additive", "Additive", "Overlapping scratches add their effects, as in the paper: a crossing "
                              "counts both depths"),
-    ("height_field", "Height Field", "Where two rectangular scratches cross, the deeper one wins, as on a "
-                                     "real surface (slower on heavily crossed sets; triple overlaps, "
-                                     "V-grooves and nearly parallel overlaps stay additive)"),
+    ("height_field", "Height Field", "Where rectangular scratches cross, the deepest one wins, as on a real "
+                                     "surface (several times slower on densely scratched sets; V-grooves "
+                                     "and nearly parallel overlaps stay additive)"),
 )

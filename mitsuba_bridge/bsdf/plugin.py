@@ -73,11 +73,12 @@ diffraction inside a Gaussian coherence window around each shading point.
      - string
      - ``additive`` (default, the paper: overlapping scratches add their
        transfer functions, so a crossing counts both depths) or
-       ``height_field`` (where two rectangular scratches cross, the overlap
-       takes the deeper one's depth, as on a real surface: one analytic
-       parallelogram correction per crossing pair in the window; triple
-       overlaps, V-grooves and nearly parallel overlaps stay additive;
-       eval up to ~2.6x slower on a crossed plate; coherent mode only;
+       ``height_field`` (where rectangular scratches cross, the overlap
+       takes the deepest one's depth, as on a real surface: one analytic
+       parallelogram correction per crossing pair in the window, plus the
+       inclusion-exclusion terms of overlaps of three to five; V-grooves
+       and nearly parallel overlaps stay additive; eval several times
+       slower on a crossed plate (docs/bsdf.md); coherent mode only;
        docs/model.md §3.4).
    * - depth_phase
      - string
@@ -107,8 +108,8 @@ direction, so deep grooves can reflect a few percent more than they receive
 depth_phase="incidence" fixes the screen by the incident direction and
 conserves energy for any depth, at the price of reciprocity.  Scratch
 crossings add their transfer functions (the paper's limitation) unless
-crossings="height_field" gives each crossing of two rectangular scratches
-the deeper depth.  Scratches
+crossings="height_field" gives each overlap of rectangular scratches the
+deepest depth.  Scratches
 are UV polylines (mesh UVs required); phases are formed relative to x0, so
 float32 suffices at any object size.  Renders need an unpolarised spectral JIT
 variant (llvm_ad_spectral, cuda_ad_spectral): diffraction colours do not exist

@@ -1,0 +1,215 @@
+"""Overlaps of three to five crossing rectangular pieces: the higher orders of the height field (docs/model.md §3.4).
+
+The pair corrections of :mod:`.overlap` are the first two orders of an
+inclusion–exclusion over the scratches covering a point; where three strips
+overlap (region T) the third order adds back
+
+    C_3(ξ) = +(e^{iκ_min} - 1) ∫_T w(x) e^{-2πiξ·x} dx,      κ_min = k_z min(D_1, D_2, D_3),
+
+the fourth subtracts the same over fourfold overlaps, the fifth adds again.
+
+**Finding the overlaps (in the kernel).**  Whether three strips overlap depends
+on their widths in µm, which the CPU cannot relate to UV (the Jacobian is the
+mesh's, per shading point), and listing every mutually crossing triple of
+pieces would cost far more than the pairs.  So, for each crossing pair (A, B)
+the kernel visits (:func:`.lookup.for_each_crossing`), one small query of the
+lookup grid around the crossing point (:func:`.lookup.for_each_segment`,
+radius: P's half diagonal plus half the widest scratch) keeps up to ``SLOTS``
+pieces C whose strip meets the parallelogram P_AB and that
+
+* hold the foot point of the crossing on their centre line (a scratch cut
+  into pieces counts once);
+* have a larger direction angle (mod π, local frame) than A and B: an overlap
+  belongs to the pair of its two lines of lowest angle, so it is counted once;
+* make pairs with A and B that the tables correct: rectangular, |sin| >=
+  ``crossings.MIN_SINE`` in UV.
+
+Every subset of the kept lines whose own pairs the tables correct (|sin| in
+UV again) is one overlap of order 2 + its size, up to ``MAX_ORDER``.  Its
+region lies in P_AB: it is integrated over the cells of P_AB (edges ≤ σ/2)
+that every further strip reaches, each cell ∩ strips by
+:func:`.polygon.clipped_cell`.  Lengths in µm.
+"""
+from __future__ import annotations
+
+import math
+
+import drjit as dr
+import mitsuba as mi
+
+from .complexmath import Cx, expi
+from .crossings import MIN_SINE
+from .lookup import Grid, LocalJacobian, for_each_segment, segment_at
+from .overlap import Parallelogram, cell_centre, parallelogram
+from .polygon import Strip, clipped_cell
+from .segment import SegmentGeometry
+
+__all__ = ["add_triples", "MAX_ORDER", "SLOTS"]
+
+#: Highest overlap order corrected: pairs (overlap.py), then orders 3 .. MAX_ORDER here; higher
+#: orders stay uncorrected (docs/model.md §3.4 bounds them).
+MAX_ORDER = 5
+#: Third lines kept per crossing pair (more meeting one pair's parallelogram are left out).
+SLOTS = 6
+#: Cells of the overlaps of order 3 and more: edges of at most this many σ, as the pairs' (σ instead saved
+#: 15 % of a plate query but took stars of 3-5 scratches from 0.6 % to 3.5 % error; docs/bsdf.md, Cost).
+HIGHER_SUB_EDGE_SIGMAS = 0.5
+
+
+def _angle(segment: SegmentGeometry):
+    """Direction angle of a piece, mod π, in [0, π)."""
+    angle = dr.atan2(segment.dy, segment.dx)
+    angle = dr.select(angle < 0.0, angle + math.pi, angle)
+    return dr.select(angle >= math.pi, angle - math.pi, angle)
+
+
+def _uv_direction(grid: Grid, piece, active):
+    tail = dr.gather(mi.Vector4f, grid.segments, 2 * piece + 1, active)
+    inv = dr.rsqrt(dr.maximum(tail.x * tail.x + tail.y * tail.y, 1e-30))
+    return tail.x * inv, tail.y * inv
+
+
+def add_triples(grid: Grid, jac: LocalJacobian, first: SegmentGeometry, second: SegmentGeometry, first_piece,
+                second_piece, crossing_uv, xi_x, xi_y, k_z, sigma, field: tuple) -> tuple:
+    """``field`` plus the terms of order 3 to MAX_ORDER of the crossing pair (``first``, ``second``).
+
+    ``field`` is a pair (re, im) of spectra; ``crossing_uv`` the crossing point of the pair's centre lines
+    (UV).  One grid query keeps up to ``SLOTS`` third lines; every subset of them of at most
+    ``MAX_ORDER - 2`` lines whose pairs the tables all correct is one overlap.  See the module docstring.
+    """
+    shape = parallelogram(first, second, sigma, HIGHER_SUB_EDGE_SIGMAS)
+    half_diagonal = 0.5 * (dr.norm(mi.Vector2f(shape.e1x, shape.e1y)) * shape.n1
+                           + dr.norm(mi.Vector2f(shape.e2x, shape.e2y)) * shape.n2)
+    # every strip meeting P passes within this of the crossing point (1 % and 10 nm for float32 UV)
+    radius = 1.01 * (half_diagonal + 0.5 * grid.max_width) + 0.01
+    around = LocalJacobian(uv=crossing_uv, j00=jac.j00, j01=jac.j01, j10=jac.j10, j11=jac.j11)
+    floor = dr.maximum(_angle(first), _angle(second))
+    first_u, first_v = _uv_direction(grid, first_piece, True)
+    second_u, second_v = _uv_direction(grid, second_piece, True)
+
+    def keep(near: SegmentGeometry, piece, state):
+        count, *slots = state
+        # the piece holding the foot point of the crossing on its centre line, rectangular, of larger angle
+        foot = -near.c
+        usable = (foot >= 0.0) & (foot < near.length) & ~near.triangular
+        other = segment_at(grid, jac, piece, usable)
+        usable &= _angle(other) > floor
+        u, v = _uv_direction(grid, piece, usable)
+        usable &= (dr.abs(first_u * v - first_v * u) >= MIN_SINE) & (dr.abs(second_u * v - second_v * u) >= MIN_SINE)
+        usable &= _meets(shape, other) & (count < SLOTS)
+        slots = [dr.select(usable & (count == k), piece, slot) for k, slot in enumerate(slots)]
+        return (dr.select(usable, count + 1, count), *slots)
+
+    empty = tuple(dr.zeros(mi.UInt32) for _ in range(SLOTS + 1))
+    count, *slots = for_each_segment(grid, around, radius, empty, keep, mi.Bool(True))
+    # triples (the common case) with three strips per cell, then the higher orders with all of theirs
+    field = _add_subsets(grid, jac, shape, first, second, count, slots, 1, 1, xi_x, xi_y, k_z, sigma, field)
+    return _add_subsets(grid, jac, shape, first, second, count, slots, 2, MAX_ORDER - 2, xi_x, xi_y, k_z, sigma,
+                        field)
+
+
+def _add_subsets(grid, jac, shape, first, second, count, slots, smallest, largest, xi_x, xi_y, k_z, sigma, field):
+    """Add ``±(e^{iκ_min} - 1) ∫`` over the overlap of (first, second) with each valid subset of ``slots``
+    of ``smallest`` to ``largest`` lines."""
+    spectrum = type(xi_x)
+    subsets = mi.UInt32(1) << count  # masks 1 .. 2^count - 1
+
+    def chosen(mask):
+        """The pieces of ``mask`` (at most ``largest``; the rest repeat the first) and how many."""
+        picked = [dr.zeros(mi.UInt32) for _ in range(largest)]
+        size = dr.zeros(mi.UInt32)
+        for k, slot in enumerate(slots):
+            bit = (mask & (1 << k)) != 0
+            picked = [dr.select(bit & (size == j), slot, p) for j, p in enumerate(picked)]
+            size = dr.select(bit, size + 1, size)
+        return picked, size
+
+    def valid(mask):
+        picked, size = chosen(mask)
+        ok = (size >= smallest) & (size <= largest)
+        directions = [_uv_direction(grid, piece, True) for piece in picked]
+        for j in range(largest):
+            for k in range(j + 1, largest):
+                (uj, vj), (uk, vk) = directions[j], directions[k]
+                ok &= (k >= size) | (dr.abs(uj * vk - vj * uk) >= MIN_SINE)
+        return ok
+
+    def advance(mask):  # the single lines one by one (1, 2, 4, ...), else every mask
+        return mask << 1 if largest == 1 else mask + 1
+
+    def skip(mask):  # cheap: lanes wait for each other on valid subsets only
+        return dr.while_loop((mask,), lambda mask: (mask < subsets) & ~valid(mask), lambda mask: (advance(mask),),
+                             label="scratch_overlap_subsets")[0]
+
+    def step(mask, re, im):
+        mask = skip(mask)
+        active = mask < subsets
+        picked, size = chosen(mask)
+        lines = [first, second]
+        shallow = dr.minimum(first.depth, second.depth)
+        for j, piece in enumerate(picked):
+            line = segment_at(grid, jac, piece, active & (size > j))
+            used = size > j
+            shallow = dr.select(used, dr.minimum(shallow, line.depth), shallow)
+            # an unused place: a strip a million µm wide along the first, which cuts nothing
+            lines.append(SegmentGeometry(*(dr.select(used, a, b) for a, b in zip(line, first._replace(width=2e6)))))
+        integral = _overlap_integral(shape, lines, active, xi_x, xi_y, sigma)
+        # Möbius inversion: (-1)^{order+1} (e^{iκ_min} - 1) ∫ over the overlap of order = size + 2
+        sign = dr.select((size & 1) == 1, 1.0, -1.0)
+        term = (expi(k_z * shallow) - 1.0) * integral * sign
+        return (advance(mask), spectrum(dr.select(active, re + term.re, re)),
+                spectrum(dr.select(active, im + term.im, im)))
+
+    first_mask = mi.UInt32(1 if smallest == 1 else 3)
+    _, re, im = dr.while_loop((skip(first_mask), field[0], field[1]), lambda mask, re, im: mask < subsets, step,
+                              label="scratch_overlaps")
+    return re, im
+
+
+def _meets(shape: Parallelogram, other: SegmentGeometry):
+    """Whether the strip of ``other`` meets the whole parallelogram."""
+    nx, ny = -other.dy, other.dx
+    distance = dr.abs(nx * shape.px + ny * shape.py - other.a_perp)
+    reach = (dr.abs(nx * shape.e1x + ny * shape.e1y) * shape.n1 + dr.abs(nx * shape.e2x + ny * shape.e2y) * shape.n2)
+    return distance <= 0.5 * (reach + other.width)
+
+
+def _overlap_integral(shape: Parallelogram, lines, usable, xi_x, xi_y, sigma) -> Cx:
+    """``∫ w e^{-2πiξ·x}`` over the overlap of ``lines``' strips, the first two those of ``shape``.
+
+    Only the cells of ``shape`` that every further strip reaches are integrated (:func:`.polygon.clipped_cell`).
+    """
+    first, second, extra = lines[0], lines[1], lines[2:]
+    normals = [(-line.dy, line.dx) for line in extra]
+    reaches = [0.5 * (dr.abs(nx * shape.e1x + ny * shape.e1y) + dr.abs(nx * shape.e2x + ny * shape.e2y)
+                      + line.width) for (nx, ny), line in zip(normals, extra)]
+    cells = dr.select(usable, mi.UInt32(shape.n1 * shape.n2), 0)
+    columns = dr.maximum(mi.UInt32(shape.n1), 1)
+    half1 = 0.5 * first.width / shape.n1
+    half2 = 0.5 * second.width / shape.n2
+
+    def misses(index):
+        cx, cy = cell_centre(shape, index, columns)
+        missed = dr.zeros(mi.Bool)
+        for (nx, ny), line, reach in zip(normals, extra, reaches):
+            missed |= dr.abs(nx * cx + ny * cy - line.a_perp) > reach
+        return (index < cells) & missed
+
+    def skip(index):  # cheap: only the cell test, so lanes wait for each other on touched cells alone
+        return dr.while_loop((index,), misses, lambda index: (index + 1,), label="scratch_overlap_skip")[0]
+
+    def step(index, re, im):
+        index = skip(index)
+        cx, cy = cell_centre(shape, index, columns)
+        strips = [Strip(-first.dy, first.dx, 0.0, half1), Strip(-second.dy, second.dx, 0.0, half2)]
+        strips += [Strip(nx, ny, line.a_perp - (nx * cx + ny * cy), 0.5 * line.width)
+                   for (nx, ny), line in zip(normals, extra)]
+        term = clipped_cell(strips, cx, cy, xi_x, xi_y, sigma)
+        inside = index < cells
+        return (index + 1, type(xi_x)(dr.select(inside, re + term.re, re)),
+                type(xi_x)(dr.select(inside, im + term.im, im)))
+
+    zero = dr.zeros(type(xi_x))
+    _, re, im = dr.while_loop((skip(mi.UInt32(0)), zero, zero), lambda index, re, im: index < cells, step,
+                              label="scratch_overlap_cells")
+    return Cx(re, im)
