@@ -27,7 +27,6 @@ BASE_MATERIALS = (
 )
 #: Depth phase per unit depth: "kirchhoff" 2π(γ_i + γ_o)/λ (docs/model.md §2) or "incidence" 4πγ_i/λ.
 DEFAULT_DEPTH_PHASE = "kirchhoff"
-DEPTH_PHASES = ("kirchhoff", "incidence")
 #: (code, label, description) of the depth phases offered in the user interface.
 DEPTH_PHASE_ITEMS = (
     ("kirchhoff", "Kirchhoff", "The paper's phase 2π(γi + γo)D/λ: reciprocal; deep scratches (D, W of "
@@ -35,10 +34,10 @@ DEPTH_PHASE_ITEMS = (
     ("incidence", "Incidence", "Phase 4πγi·D/λ: never reflects more than falls on it, but not reciprocal "
                                "(docs/bsdf.md, Energy)"),
 )
+DEPTH_PHASES = tuple(code for code, _, _ in DEPTH_PHASE_ITEMS)
 #: Where rectangular scratches cross: "additive" sums their transfer functions (the paper, docs/model.md §2),
 #: "height_field" gives the overlap the deeper one's depth (docs/model.md §3.4).
 DEFAULT_CROSSINGS = "additive"
-CROSSINGS = ("additive", "height_field")
 #: (code, label, description) of the crossing treatments offered in the user interface.
 CROSSING_ITEMS = (
     ("additive", "Additive", "Overlapping scratches add their effects, as in the paper: a crossing "
@@ -47,3 +46,4 @@ CROSSING_ITEMS = (
                                      "surface (several times slower on densely scratched sets; V-grooves "
                                      "and nearly parallel overlaps stay additive)"),
 )
+CROSSINGS = tuple(code for code, _, _ in CROSSING_ITEMS)
