@@ -10,9 +10,14 @@ Put the :class:`Cx` on the left of an operator (``z * x``, not ``x * z``).
 """
 from __future__ import annotations
 
+import math
+
 import drjit as dr
 
-__all__ = ["Cx", "expi", "exp"]
+__all__ = ["Cx", "expi", "exp", "scaled_sinc"]
+
+#: Below this |πz|² the complex sinc is its series 1 - (πz)²/6 (next term < 1e-9).
+_SERIES_BELOW = 1e-4
 
 
 class Cx:
@@ -87,3 +92,21 @@ def exp(z: Cx) -> Cx:
     s, c = dr.sincos(z.im)
     magnitude = dr.exp(z.re)
     return Cx(magnitude * c, magnitude * s)
+
+
+def scaled_sinc(re, im) -> Cx:
+    """``e^{-π|im|} sin(πz)/(πz)`` for ``z = re + i im``: the normalised sinc without its growth e^{π|im|}.
+
+    The growth is returned to the caller's exponent, where the window's decay cancels it (a sinc of
+    |πz| ≈ 100 would overflow float32 on its own).
+    """
+    x, y = math.pi * re, math.pi * im
+    s, c = dr.sincos(x)
+    decay = dr.exp(-2.0 * dr.abs(y))
+    half_cosh, half_sinh = 0.5 * (1.0 + decay), dr.copysign(0.5 * (1.0 - decay), y)
+    numerator = Cx(s * half_cosh, c * half_sinh)  # sin(x + iy) e^{-|y|}
+    z = Cx(x, y)
+    z2 = z * z
+    small = z2.abs2() < _SERIES_BELOW * _SERIES_BELOW
+    series = (1.0 - z2 * (1.0 / 6.0)) * dr.exp(-dr.abs(y))
+    return (numerator / Cx(dr.select(small, 1.0, x), dr.select(small, 0.0, y))).select(~small, series)

@@ -1,6 +1,6 @@
 """Crossing pairs of straight pieces, for the height-field correction (numpy only; docs/model.md §3.4).
 
-Where two rectangular scratches cross, the paper's sum of transfer functions
+Where two scratches cross, the paper's sum of transfer functions
 counts both depths; the true height field has the deeper one's.  The kernel
 (:mod:`.overlap`) adds one correction per crossing pair inside the window, so
 the tables list, per piece, the pieces it crosses (CSR: ``crossing_start``,
@@ -14,7 +14,6 @@ the mesh's Jacobian.  Candidates are the pieces listed together in a cell of
 the lookup grid (both pieces are listed in the cell of their crossing point).
 Left out (their overlap stays additive, docs/model.md §3.4):
 
-* pairs with a V-groove (the overlap's depth is not one value);
 * nearly parallel pairs, ``|sin θ| < MIN_SINE`` (measured in UV): their
   overlap is a long sliver whose shape the piece ends decide;
 * consecutive pieces of one polyline (they share an end point);
@@ -36,15 +35,13 @@ MIN_SINE = 0.1
 PAIR_BUDGET = 1 << 22
 
 
-def find_crossings(a, b, signed_depth, references, cell_start, cell_normals):
+def find_crossings(a, b, references, cell_start, cell_normals):
     """``(crossing_start, crossing_partner, crossing_along)`` of the pieces ``a[i] → b[i]`` (UV, float64).
 
     Parameters
     ----------
     a, b:
         (N, 2) start and end points of the pieces, in table order.
-    signed_depth:
-        (N,) depth in µm, negative for V-grooves (as in the segment table).
     references, cell_start:
         The lookup grid's references (piece indices grouped by cell) and CSR starts.
     cell_normals:
@@ -65,7 +62,6 @@ def find_crossings(a, b, signed_depth, references, cell_start, cell_normals):
     e = b - a
     length = np.maximum(np.hypot(e[:, 0], e[:, 1]), 1e-300)
     direction = e / length[:, None]
-    rectangular = signed_depth > 0
     pairs = [np.zeros((0, 2), dtype=np.int64)]
 
     starts = cell_start.astype(np.int64)
@@ -77,7 +73,7 @@ def find_crossings(a, b, signed_depth, references, cell_start, cell_normals):
                       >= 0.5 * MIN_SINE]
     for group in _cell_groups(cells, sizes):
         first, second = _pairs_in_cells(group, starts, sizes, references)
-        keep = rectangular[first] & rectangular[second] & (first != second)
+        keep = first != second
         first, second = first[keep], second[keep]
         found = _crossing(a, e, direction, first, second)
         pairs.append(np.stack([np.minimum(first, second), np.maximum(first, second)], axis=1)[found])

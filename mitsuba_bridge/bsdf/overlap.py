@@ -1,4 +1,4 @@
-"""Height-field correction of two crossing rectangular pieces (Dr.Jit side; docs/model.md §3.4).
+"""Height-field correction of two crossing pieces (Dr.Jit side; docs/model.md §3.4).
 
 On the overlap P of two flat-bottomed scratches of depths D_1, D_2 the sum of
 transfer functions gives ``e^{iκ_1} + e^{iκ_2} - 1`` where the height field
@@ -16,7 +16,14 @@ E_2/n_2, written E below) the window is expanded: its value and slope exactly
 
     ∫ w e^{-2πiξ·x} ≈ w(c) e^{-2πiξ·c} e^{-(|E_1|² + |E_2|²)/(24σ²)} |E_1 × E_2| sinc(ζ·E_1) sinc(ζ·E_2)
 
-with the normalised sinc of a complex argument.  Lengths in µm.
+with the normalised sinc of a complex argument.
+
+Where a V-groove takes part the depths vary across P and the correction is
+``-∫_P (e^{ik_z min(h_1, h_2)} - 1) w e^{-2πiξ·x}`` (the deeper one wins, so
+the sum's excess is the shallower one's transfer function): the cells split
+the V at its centre line, so both depths are planes over a cell, and the
+line h_1 = h_2 cuts it into two convex polygons with a linear phase each
+(:func:`_sloped_correction`).  Lengths in µm.
 """
 from __future__ import annotations
 
@@ -26,36 +33,17 @@ from typing import NamedTuple
 import drjit as dr
 import mitsuba as mi
 
-from .complexmath import Cx, expi
+from .complexmath import Cx, expi, scaled_sinc
+from .polygon import Strip, clipped_cell
 from .segment import SegmentGeometry
 
-__all__ = ["Parallelogram", "cell_centre", "crossing_correction", "parallelogram", "scaled_sinc"]
+__all__ = ["Parallelogram", "cell_centre", "crossing_correction", "parallelogram"]
 
-#: Below this |πz|² the complex sinc is its series 1 - (πz)²/6 (next term < 1e-9).
-_SERIES_BELOW = 1e-4
 #: The overlap is cut into n_1 × n_2 sub-parallelograms with edges at most this many σ long, each with
 #: its own window expansion: the neglected curvature then stays below ~1 % (docs/model.md §3.4).
 SUB_EDGE_SIGMAS = 0.5
 #: ... and at most this many along each edge (longer edges get longer cells: at |sin θ| = 0.1, from W = 0.4σ).
 MAX_SPLIT = 8
-
-
-def scaled_sinc(re, im) -> Cx:
-    """``e^{-π|im|} sin(πz)/(πz)`` for ``z = re + i im``: the normalised sinc without its growth e^{π|im|}.
-
-    The growth is returned to the caller's exponent, where the window's decay cancels it (a sinc of
-    |πz| ≈ 100 would overflow float32 on its own).
-    """
-    x, y = math.pi * re, math.pi * im
-    s, c = dr.sincos(x)
-    decay = dr.exp(-2.0 * dr.abs(y))
-    half_cosh, half_sinh = 0.5 * (1.0 + decay), dr.copysign(0.5 * (1.0 - decay), y)
-    numerator = Cx(s * half_cosh, c * half_sinh)  # sin(x + iy) e^{-|y|}
-    z = Cx(x, y)
-    z2 = z * z
-    small = z2.abs2() < _SERIES_BELOW * _SERIES_BELOW
-    series = (1.0 - z2 * (1.0 / 6.0)) * dr.exp(-dr.abs(y))
-    return (numerator / Cx(dr.select(small, 1.0, x), dr.select(small, 0.0, y))).select(~small, series)
 
 
 class Parallelogram(NamedTuple):
@@ -75,7 +63,11 @@ class Parallelogram(NamedTuple):
 def parallelogram(first: SegmentGeometry, second: SegmentGeometry, sigma,
                   sub_edge_sigmas: float = SUB_EDGE_SIGMAS) -> Parallelogram:
     """The overlap of the strips of ``first`` and ``second`` and its cells of edges of at most
-    ``sub_edge_sigmas`` σ (and at most MAX_SPLIT per edge; module docstring)."""
+    ``sub_edge_sigmas`` σ (and at most MAX_SPLIT per edge; module docstring).
+
+    Across a V-groove the cell count is even, so that its centre line is a cell boundary and its depth
+    is linear over every cell.
+    """
     sine = first.dx * second.dy - first.dy * second.dx
     sine = dr.select(dr.abs(sine) > 1e-6, sine, 1e-6)
     inv_sine = dr.rcp(sine)
@@ -85,9 +77,11 @@ def parallelogram(first: SegmentGeometry, second: SegmentGeometry, sigma,
     edge1 = first.width * dr.abs(inv_sine)
     edge2 = second.width * dr.abs(inv_sine)
     sub_edge = sub_edge_sigmas * sigma
-    # (at least 1: lanes without a partner divide by the column count too)
+    # (at least 1: lanes without a partner divide by the column count too; MAX_SPLIT is even)
     n1 = dr.clip(dr.ceil(edge1 / sub_edge), 1.0, MAX_SPLIT)
     n2 = dr.clip(dr.ceil(edge2 / sub_edge), 1.0, MAX_SPLIT)
+    n1 = dr.select(first.triangular, 2.0 * dr.ceil(0.5 * n1), n1)
+    n2 = dr.select(second.triangular, 2.0 * dr.ceil(0.5 * n2), n2)
     e1, e2 = edge1 / n1, edge2 / n2  # the sub-parallelogram's edges: E_1 = e1 d_2, E_2 = e2 d_1
     return Parallelogram(px, py, e1 * second.dx, e1 * second.dy, e2 * first.dx, e2 * first.dy, n1, n2, sine)
 
@@ -101,31 +95,113 @@ def cell_centre(shape: Parallelogram, index, columns):
 
 
 def crossing_correction(first: SegmentGeometry, second: SegmentGeometry, xi_x, xi_y, k_z, sigma) -> Cx:
-    """``C(ξ)`` of a crossing pair of rectangular pieces, per wavelength (see the module docstring)."""
+    """``C(ξ)`` of a crossing pair, per wavelength: flat-bottomed pairs as in the module docstring, pairs
+    with a V-groove by :func:`_sloped_correction` (each costs only in SIMD packets that hold one)."""
     shape = parallelogram(first, second, sigma)
-    e1x, e1y, e2x, e2y, n1, n2 = shape.e1x, shape.e1y, shape.e2x, shape.e2y, shape.n1, shape.n2
-    area = dr.abs(e1x * e2y - e1y * e2x)  # |E_1 × E_2| of a cell
-    inv_sigma2 = dr.rcp(sigma * sigma)
-    # mean of |x - centre|²/2 over a sub-parallelogram
-    curvature = (e1x * e1x + e1y * e1y + e2x * e2x + e2y * e2y) * (1.0 / 24.0)
-    slope = (-1.0 / (2.0 * math.pi)) * inv_sigma2
-    xi_e1 = xi_x * e1x + xi_y * e1y
-    xi_e2 = xi_x * e2x + xi_y * e2y
-    cells = mi.UInt32(n1 * n2)
-    columns = dr.maximum(mi.UInt32(n1), 1)
+    grooved = first.triangular | second.triangular
+    cells = dr.select(grooved, 0, mi.UInt32(shape.n1 * shape.n2))
+    columns = dr.maximum(mi.UInt32(shape.n1), 1)
 
     def step(index, re, im):
         cx, cy = cell_centre(shape, index, columns)
-        # ζ = ξ - i c/(2πσ²): the imaginary parts of ζ·E are the window's slope along the edges
-        im1 = slope * (cx * e1x + cy * e1y)
-        im2 = slope * (cx * e2x + cy * e2y)
-        exponent = -(0.5 * (cx * cx + cy * cy) + curvature) * inv_sigma2 + math.pi * (dr.abs(im1) + dr.abs(im2))
-        term = (expi((-2.0 * math.pi) * (xi_x * cx + xi_y * cy)) * scaled_sinc(xi_e1, im1)
-                * scaled_sinc(xi_e2, im2) * dr.exp(exponent))
+        term = _cell_integral(shape, cx, cy, xi_x, xi_y, sigma)
         return index + 1, type(xi_x)(re + term.re), type(xi_x)(im + term.im)
 
     zero = dr.zeros(type(xi_x))
     _, re, im = dr.while_loop((mi.UInt32(0), zero, zero), lambda index, re, im: index < cells, step,
                               label="scratch_overlap")
     shallow = k_z * dr.minimum(first.depth, second.depth)
-    return -((expi(shallow) - 1.0) * Cx(re, im) * area)
+    flat = -((expi(shallow) - 1.0) * Cx(re, im))
+    return flat + _sloped_correction(first, second, shape, grooved, xi_x, xi_y, k_z, sigma)
+
+
+def _cell_integral(shape: Parallelogram, cx, cy, xi_x, xi_y, sigma) -> Cx:
+    """``∫ w e^{-2πiξ·x}`` over the cell of ``shape`` centred at ``c`` (module docstring)."""
+    e1x, e1y, e2x, e2y = shape.e1x, shape.e1y, shape.e2x, shape.e2y
+    inv_sigma2 = dr.rcp(sigma * sigma)
+    # mean of |x - centre|²/2 over a sub-parallelogram
+    curvature = (e1x * e1x + e1y * e1y + e2x * e2x + e2y * e2y) * (1.0 / 24.0)
+    slope = (-1.0 / (2.0 * math.pi)) * inv_sigma2
+    # ζ = ξ - i c/(2πσ²): the imaginary parts of ζ·E are the window's slope along the edges
+    im1 = slope * (cx * e1x + cy * e1y)
+    im2 = slope * (cx * e2x + cy * e2y)
+    exponent = -(0.5 * (cx * cx + cy * cy) + curvature) * inv_sigma2 + math.pi * (dr.abs(im1) + dr.abs(im2))
+    area = dr.abs(e1x * e2y - e1y * e2x)  # |E_1 × E_2|
+    return (expi((-2.0 * math.pi) * (xi_x * cx + xi_y * cy)) * scaled_sinc(xi_x * e1x + xi_y * e1y, im1)
+            * scaled_sinc(xi_x * e2x + xi_y * e2y, im2) * (dr.exp(exponent) * area))
+
+
+def _depth_plane(segment: SegmentGeometry, cx, cy):
+    """The depth over the cell centred at ``c`` as a plane: ``(h(c), ∇h)`` (µm, per µm).
+
+    Flat bottom: D.  V-groove: D(1 - 2|u|/W) with u = n·x - a⊥, linear on the cell because the cell
+    lies on one side of the centre line (:func:`parallelogram`)."""
+    nx, ny = -segment.dy, segment.dx
+    u = nx * cx + ny * cy - segment.a_perp
+    side = dr.select(u >= 0.0, 1.0, -1.0)
+    rate = dr.select(segment.triangular, -2.0 * segment.depth * side / segment.width, 0.0)
+    return segment.depth + rate * u, rate * nx, rate * ny
+
+
+def _sloped_correction(first: SegmentGeometry, second: SegmentGeometry, shape: Parallelogram, active,
+                       xi_x, xi_y, k_z, sigma) -> Cx:
+    """``C(ξ) = -∫_P (e^{ik_z min(h_1, h_2)} - 1) w e^{-2πiξ·x}`` where a depth varies across P (docs/model.md §3.4).
+
+    On a cell both depths are planes (:func:`_depth_plane`); the line h_1 = h_2 cuts it into Q_1 (h_1 ≤ h_2)
+    and Q_2, and over each ``e^{ik_z h}`` with h = h(c) + ∇h·(x - c) is a shift of the frequency by
+    k_z ∇h / 2π, so ``∫_Q e^{ik_z h} w e^{-2πiξ·x} = e^{ik_z (h(c) - ∇h·c)} ∫_Q w e^{-2πiξ'·x}``, the clipped
+    cell of :mod:`.polygon`.  The -1 is the whole cell's integral.
+    """
+    cells = dr.select(active, mi.UInt32(shape.n1 * shape.n2), 0)
+    columns = dr.maximum(mi.UInt32(shape.n1), 1)
+    half1 = 0.5 * first.width / shape.n1
+    half2 = 0.5 * second.width / shape.n2
+    # every point of a cell lies within reach/2 of its centre
+    reach = dr.norm(mi.Vector2f(shape.e1x, shape.e1y)) + dr.norm(mi.Vector2f(shape.e2x, shape.e2y))
+    spectrum = type(xi_x)
+    scale = k_z * (1.0 / (2.0 * math.pi))
+
+    def step(index, re, im):
+        cx, cy = cell_centre(shape, index, columns)
+        h1, g1x, g1y = _depth_plane(first, cx, cy)
+        h2, g2x, g2y = _depth_plane(second, cx, cy)
+        # h_1 <= h_2 where m·y <= t (y = x - c, m the unit gradient of h_1 - h_2); t clipped to the cell's reach
+        gx, gy = g1x - g2x, g1y - g2y
+        norm = dr.sqrt(gx * gx + gy * gy)
+        level = h1 - h2
+        tilted = norm > 1e-6  # else h_1 - h_2 varies by less than a picometre over the cell
+        inv = dr.rcp(dr.select(tilted, norm, 1.0))
+        mx, my = dr.select(tilted, gx * inv, 1.0), dr.select(tilted, gy * inv, 0.0)
+        t = dr.select(tilted, dr.clip(-level * inv, -reach, reach), dr.select(level <= 0.0, reach, -reach))
+        phase1, phase2 = k_z * (h1 - g1x * cx - g1y * cy), k_z * (h2 - g2x * cx - g2y * cy)
+
+        def split(cx, cy):
+            """The line h_1 = h_2 crosses the cell: two clipped polygons."""
+            cell = [Strip(-first.dy, first.dx, 0.0, half1), Strip(-second.dy, second.dx, 0.0, half2)]
+            lower = clipped_cell(cell + [Strip(mx, my, t)], cx, cy,
+                                 spectrum(xi_x - scale * g1x), spectrum(xi_y - scale * g1y), sigma)
+            upper = clipped_cell(cell + [Strip(-mx, -my, -t)], cx, cy,
+                                 spectrum(xi_x - scale * g2x), spectrum(xi_y - scale * g2y), sigma)
+            term = expi(phase1) * lower + expi(phase2) * upper
+            return term.re, term.im
+
+        def whole(cx, cy):
+            """One depth is the smaller over the whole cell: the parallelogram at a shifted frequency."""
+            first_lower = level <= 0.0
+            slope_x = dr.select(first_lower, g1x, g2x)
+            slope_y = dr.select(first_lower, g1y, g2y)
+            term = expi(dr.select(first_lower, phase1, phase2)) * _cell_integral(
+                shape, cx, cy, spectrum(xi_x - scale * slope_x), spectrum(xi_y - scale * slope_y), sigma)
+            return term.re, term.im
+
+        # h_1 - h_2 keeps its sign over the cell where its value at the centre exceeds its change to the corners
+        crossed = dr.abs(level) < 0.5 * (dr.abs(gx * shape.e1x + gy * shape.e1y)
+                                         + dr.abs(gx * shape.e2x + gy * shape.e2y))
+        re_cut, im_cut = dr.if_stmt((cx, cy), crossed, split, whole, label="scratch_overlap_split")
+        term = Cx(re_cut, im_cut) - _cell_integral(shape, cx, cy, xi_x, xi_y, sigma)
+        return index + 1, spectrum(re - term.re), spectrum(im - term.im)
+
+    zero = dr.zeros(spectrum)
+    _, re, im = dr.while_loop((mi.UInt32(0), zero, zero), lambda index, re, im: index < cells, step,
+                              label="scratch_overlap_sloped")
+    return Cx(re, im)

@@ -73,13 +73,13 @@ diffraction inside a Gaussian coherence window around each shading point.
      - string
      - ``additive`` (default, the paper: overlapping scratches add their
        transfer functions, so a crossing counts both depths) or
-       ``height_field`` (where rectangular scratches cross, the overlap
-       takes the deepest one's depth, as on a real surface: one analytic
-       parallelogram correction per crossing pair in the window, plus the
-       inclusion-exclusion terms of overlaps of three to five; V-grooves
-       and nearly parallel overlaps stay additive; eval several times
-       slower on a crossed plate (docs/bsdf.md); coherent mode only;
-       docs/model.md §3.4).
+       ``height_field`` (where scratches cross, the overlap takes the
+       deepest one's depth, as on a real surface: one analytic
+       parallelogram correction per crossing pair in the window, V-grooves
+       included, plus the inclusion-exclusion terms of overlaps of three to
+       five flat-bottomed scratches; nearly parallel overlaps stay
+       additive; eval several times slower on a crossed plate
+       (docs/bsdf.md); coherent mode only; docs/model.md §3.4).
    * - depth_phase
      - string
      - ``kirchhoff`` (default, the paper's depth phase 2π(γ_i + γ_o)d/λ,

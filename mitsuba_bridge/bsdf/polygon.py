@@ -31,8 +31,7 @@ import math
 
 import drjit as dr
 
-from .complexmath import Cx, expi
-from .overlap import scaled_sinc
+from .complexmath import Cx, expi, scaled_sinc
 
 __all__ = ["Strip", "clipped_cell"]
 
@@ -44,12 +43,23 @@ MAX_EXPONENT = 60.0
 
 
 class Strip:
-    """``|n·y - offset| <= half_width`` (local frame, µm, relative to the cell centre)."""
+    """``|n·y - offset| <= half_width`` (local frame, µm, relative to the cell centre); with
+    ``half_width=None`` the half-plane ``n·y <= offset`` (one edge instead of two)."""
 
     __slots__ = ("nx", "ny", "offset", "half_width")
 
-    def __init__(self, nx, ny, offset, half_width):
+    def __init__(self, nx, ny, offset, half_width=None):
         self.nx, self.ny, self.offset, self.half_width = nx, ny, offset, half_width
+
+    def levels(self):
+        """``(level, sign)`` of each boundary line ``n·y = level``, ``sign`` n's orientation outwards."""
+        if self.half_width is None:
+            return [(self.offset, 1.0)]
+        return [(self.offset + self.half_width, 1.0), (self.offset - self.half_width, -1.0)]
+
+
+#: Far end of the interval a half-plane leaves on a line (µm): beyond any polygon here.
+_UNBOUNDED = 1e30
 
 
 def _interval_on_line(line: Strip, level, other: Strip):
@@ -59,6 +69,9 @@ def _interval_on_line(line: Strip, level, other: Strip):
     slope = dr.select(dr.abs(slope) > 1e-6, slope, 1e-6)  # parallel: all or nothing, decided by the other strip
     base = level * (other.nx * line.nx + other.ny * line.ny)
     inv = dr.rcp(slope)
+    if other.half_width is None:  # base + τ slope <= offset
+        bound = (other.offset - base) * inv
+        return dr.select(slope > 0.0, -_UNBOUNDED, bound), dr.select(slope > 0.0, bound, _UNBOUNDED)
     t1 = (other.offset - other.half_width - base) * inv
     t2 = (other.offset + other.half_width - base) * inv
     return dr.minimum(t1, t2), dr.maximum(t1, t2)
@@ -70,7 +83,7 @@ def clipped_cell(strips, cx, cy, xi_x, xi_y, sigma) -> Cx:
     Parameters
     ----------
     strips:
-        Three or more :class:`Strip` (offsets relative to ``c``), no two parallel.
+        Three or more :class:`Strip` (offsets relative to ``c``; half-planes allowed), bounding a polygon.
     cx, cy:
         The cell centre relative to the shading point x0 (µm).
     xi_x, xi_y:
@@ -102,8 +115,7 @@ def clipped_cell(strips, cx, cy, xi_x, xi_y, sigma) -> Cx:
     for s in range(len(strips)):
         line = strips[s]
         others = [strips[r] for r in range(len(strips)) if r != s]
-        for sign in (1.0, -1.0):
-            level = line.offset + sign * line.half_width
+        for level, sign in line.levels():
             lo = hi = None
             for other in others:
                 a, b = _interval_on_line(line, level, other)

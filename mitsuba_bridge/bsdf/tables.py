@@ -155,7 +155,7 @@ def build_sorted(scratches: ScratchSet, cell_size: float = 0.0, crossings: bool 
     references, offsets, frames, cell_start = sorted_references(a, b, h, origin, shape, margin)
     if crossings:
         crossing_start, crossing_partner, crossing_along = find_crossings(
-            a, b, segments[:, 7], references, cell_start, frames[:, 0:2].astype(np.float64))
+            a, b, references, cell_start, frames[:, 0:2].astype(np.float64))
     else:
         crossing_start, crossing_partner, crossing_along = _no_crossings(len(segments))
     return GridTables(segments=segments, references=references, offsets=offsets, cell_frames=frames,

@@ -101,7 +101,8 @@ def add_triples(grid: Grid, jac: LocalJacobian, first: SegmentGeometry, second: 
         return (dr.select(usable, count + 1, count), *slots)
 
     empty = tuple(dr.zeros(mi.UInt32) for _ in range(SLOTS + 1))
-    count, *slots = for_each_segment(grid, around, radius, empty, keep, mi.Bool(True))
+    # pairs with a V-groove stop at their pair term (docs/model.md §3.4 bounds what that leaves)
+    count, *slots = for_each_segment(grid, around, radius, empty, keep, ~(first.triangular | second.triangular))
     # triples (the common case) with three strips per cell, then the higher orders with all of theirs
     field = _add_subsets(grid, jac, shape, first, second, count, slots, 1, 1, xi_x, xi_y, k_z, sigma, field)
     return _add_subsets(grid, jac, shape, first, second, count, slots, 2, MAX_ORDER - 2, xi_x, xi_y, k_z, sigma,

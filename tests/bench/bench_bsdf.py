@@ -226,6 +226,9 @@ def crossing_sets(args, rng):
         "Fig. 7(b) plate, 3 000": scratch.random_scratches(
             3000, seed=7, width=scratch.Gaussian(4e-6, 1.3e-6), depth=scratch.Gaussian(250e-9, 80e-9),
             depth_variation=(1.1, 0.04), region=((0.2, 0.2), (0.6, 0.6))),
+        "the same, V-grooves": scratch.random_scratches(
+            3000, seed=7, width=scratch.Gaussian(4e-6, 1.3e-6), depth=scratch.Gaussian(250e-9, 80e-9),
+            depth_variation=(1.1, 0.04), region=((0.2, 0.2), (0.6, 0.6)), profile=scratch.Profile.TRIANGULAR),
         "worn plate, 30 000": scratch.random_scratches(
             30000, seed=8, width=scratch.Uniform(0.5e-6, 6e-6), depth=scratch.Uniform(0.1e-6, 1e-6),
             region=((0.2, 0.2), (0.6, 0.6))),

@@ -7,6 +7,8 @@ both from one global raster (``reference.raster_footprints`` and
 """
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from scratch_iridescence.mitsuba_bridge.bsdf import probe
@@ -27,6 +29,12 @@ def random_set(count, seed, spread_um, width_um, depth_um=(0.1, 0.5), length_um=
         scratches.append(ref.Scratch(tuple(centre - d), tuple(centre + d), rng.uniform(*width_um),
                                      rng.uniform(*depth_um)))
     return scratches
+
+
+def with_v_grooves(scratches, share, seed):
+    """The same scratches, each a V-groove with probability ``share``."""
+    rng = np.random.default_rng(seed)
+    return [dataclasses.replace(s, profile=ref.TRI if rng.uniform() < share else ref.RECT) for s in scratches]
 
 
 def overlap_shares(x, footprints, sigma):
@@ -89,6 +97,23 @@ class Raster:
                                                                                      xi_x, xi_y)
             result += (ref.brdf(field[keep], lam, self.sigma),)
         return result
+
+
+def sloped_plane(scratches, sigma, wavelength_nm, theta_deg, samples, pitch_um, phi_deg=20.0):
+    """``(ω_i, wo rows, true f_r)`` as :meth:`Raster.planes`, for any profiles: the height field (the
+    deepest profile per point) summed directly per direction (``reference.field_global_raster``), so
+    V-grooves crossing anything are exact to the raster's pitch; slower, hence coarser planes."""
+    lam = wavelength_nm * 1e-3
+    t, p = np.radians(theta_deg), np.radians(phi_deg)
+    wi = np.array([np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), np.cos(t)])
+    axis = np.linspace(-1.0, 1.0, samples) / lam
+    gx, gy = np.meshgrid(axis + wi[0] / lam, axis + wi[1] / lam, indexing="xy")
+    xi = np.column_stack([gx.ravel(), gy.ravel()])
+    wo, visible = ref.directions(xi, lam, wi)
+    keep = visible & (np.hypot(xi[:, 0], xi[:, 1]) > 4.0 / (2 * np.sqrt(2) * np.pi * sigma))  # off the lobe
+    xi, wo = xi[keep], wo[keep]
+    field = ref.field_global_raster(scratches, xi, ref.kz_of(wo, wi, lam), sigma, pitch=pitch_um)
+    return wi, wo, ref.brdf(field, lam, sigma)
 
 
 def plugin_brdf(bsdf, wi, rows, wavelength_nm):
