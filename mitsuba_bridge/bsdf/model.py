@@ -110,7 +110,7 @@ class Model:
         bounded = self.depth_phase == "bounded" and coherent and want_value and has_glossy
 
         def body(segment, piece, state):
-            (a, b), energy, density, (excess_i, excess_o) = state
+            (a, b), energy, density, excess = state
             if want_value and has_glossy:
                 s = amplitude(segment, xi_x, xi_y, k_z, sigma, coherent=coherent)
                 if coherent:
@@ -130,22 +130,23 @@ class Model:
                     a, b = spectrum(a + s.abs2()), b + sampling.window_energy(segment, sigma)
                 if bounded:
                     e_i, e_o = albedo_excess(segment, wi, wo, wavelength, sigma)
-                    excess_i, excess_o = spectrum(excess_i + e_i), spectrum(excess_o + e_o)
+                    excess = (spectrum(excess[0] + e_i), spectrum(excess[1] + e_o))
             if want_pdf and has_glossy:
                 weight = sampling.selection_weight(segment, kz0 * segment.depth, sigma, coherent)
                 # (never in place: the inputs of a symbolic branch must stay untouched)
                 energy = energy + weight
                 density = density + weight * self._scratch_density(segment, xi0_x, xi0_y, wi, lam0, kz0)
-            return (a, b), energy, density, (excess_i, excess_o)
+            return (a, b), energy, density, excess
 
-        (a, b), energy, density, (excess_i, excess_o) = for_each_segment(
-            self.grid, jac, WINDOW_RADIUS_SIGMAS * sigma, (field, zero_f, zero_f, (zero_s, zero_s)), body,
-            active & has_glossy)
+        # (the excess sums join the loop state only when they are used: no cost for the other phases)
+        (a, b), energy, density, excess = for_each_segment(
+            self.grid, jac, WINDOW_RADIUS_SIGMAS * sigma, (field, zero_f, zero_f, (zero_s, zero_s) if bounded else ()),
+            body, active & has_glossy)
 
         value = pdf = None
         if want_value:
             if bounded:  # f / max(1, Â(ω_i), Â(ω_o)): reciprocal, albedo ≤ 1 (docs/model.md §4.1)
-                a, b = self._bounded(a, b, excess_i, excess_o)
+                a, b = self._bounded(a, b, *excess)
             value = self._value(si, wo, wavelength, lobe, a, b, has_glossy, has_diffuse, active)
         if want_pdf:
             q_d, q_s, q_m = self._strategy_weights(si, energy, wi.z, has_glossy, has_diffuse, active)

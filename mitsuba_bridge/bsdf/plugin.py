@@ -90,7 +90,8 @@ diffraction inside a Gaussian coherence window around each shading point.
        ``bounded`` (the Kirchhoff BRDF divided by max(1, Â(ω_i), Â(ω_o)),
        Â the directional albedo estimated per scratch segment: reciprocal,
        albedo ≤ 1 for any depth, unchanged for shallow scratches; eval
-       costs tens of times more per segment in the window, docs/bsdf.md).
+       costs tens of times more per segment in the window; coherent mode
+       only, docs/bsdf.md).
 
 The model.  Each evaluation is one coherence window w = exp(-|x - x0|²/2σ²) at
 the shading point x0.  The reflected far field is the mirror lobe of the
