@@ -70,8 +70,8 @@ def albedo_excess(segment: SegmentGeometry, wi, wo, wavelength, sigma):
         kappa_mirror = spectrum((4.0 * math.pi) * depth * wz / wavelength)  # facet positions of the sampler
 
         gaussian = k < GAUSSIAN_NODES
-        u = dr.select(gaussian, (mi.Float(k) + 0.5) * (1.0 / GAUSSIAN_NODES),
-                      (mi.Float(k - GAUSSIAN_NODES) + 0.5) * (1.0 / CAUCHY_NODES))
+        index = mi.Float(k) + 0.5  # stratified quantiles (k + 1/2)/N of each family
+        u = dr.select(gaussian, index * (1.0 / GAUSSIAN_NODES), (index - GAUSSIAN_NODES) * (1.0 / CAUCHY_NODES))
         nu_gauss = spectrum((s * math.sqrt(2.0)) * dr.erfinv(2.0 * u - 1.0))
         nu_cauchy = sampling.sample_across(u, segment, kappa_mirror, lo, hi)
         nu = dr.select(gaussian, nu_gauss, nu_cauchy)
