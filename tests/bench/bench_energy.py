@@ -1,10 +1,11 @@
-"""Benchmark (physics): directional albedo of deep scratches under both depth phases (issue 12, item 2).
+"""Benchmark (physics): directional albedo of deep scratches under the depth phases (issue 12, item 2).
 
 One long scratch through a coherence window of σ = 5 µm (the default δ_c = 30 µm) on a perfect
 mirror; the albedo ∫ f_r cos θ_o dω = ∫ f_r d(ω_o,t) by the midpoint rule on a grid of direction
 cosines (``--resolution`` per axis; the flat mirror integrates to 1 within 1 % at 700).  Printed:
 the largest albedo over 450/550/650/750 nm at each incidence, for ``depth_phase="kirchhoff"``
-(the paper's phase) and ``"incidence"`` (a screen fixed by ω_i).
+(the paper's phase), ``"incidence"`` (a screen fixed by ω_i) and ``"bounded"`` (Kirchhoff divided by
+max(1, Â(ω_i), Â(ω_o)), docs/model.md §4.1); ``--phases`` and ``--cases`` select.
 
 Run: ``.venv/bin/python tests/bench/bench_energy.py``.
 """
