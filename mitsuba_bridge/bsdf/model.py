@@ -18,6 +18,7 @@ import mitsuba as mi
 
 from . import sampling
 from .complexmath import Cx
+from .energy import albedo_excess
 from .fresnel import fresnel_conductor
 from .lookup import Grid, for_each_crossing, for_each_segment, jacobian, segment_at
 from .overlap import crossing_correction
@@ -46,7 +47,7 @@ class Model:
     eta: object = None  #: mi.Texture or None (perfect mirror)
     k: object = None
     diffuse: object = None  #: mi.Texture or None
-    depth_phase: str = "kirchhoff"  #: or "incidence" (docs/bsdf.md, Energy)
+    depth_phase: str = "kirchhoff"  #: or "incidence", "bounded" (docs/bsdf.md, Energy)
     #: correct crossings of rectangular pieces to the height field (docs/model.md §3.4; coherent mode)
     height_field: bool = False
     #: with height_field: add the triple-overlap terms too (docs/model.md §3.4); off only to measure them
@@ -105,9 +106,11 @@ class Model:
 
         zero_s, zero_f = dr.zeros(mi.Spectrum), dr.zeros(mi.Float)
         field = (lobe, zero_s) if coherent else (zero_s, zero_f)
+        # "bounded": Σ_k e_k(ω_i), Σ_k e_k(ω_o), the albedo estimate's segment terms (docs/model.md §4.1)
+        bounded = self.depth_phase == "bounded" and coherent and want_value and has_glossy
 
         def body(segment, piece, state):
-            (a, b), energy, density = state
+            (a, b), energy, density, excess = state
             if want_value and has_glossy:
                 s = amplitude(segment, xi_x, xi_y, k_z, sigma, coherent=coherent)
                 if coherent:
@@ -125,18 +128,25 @@ class Model:
                                                  add_crossing)
                 else:
                     a, b = spectrum(a + s.abs2()), b + sampling.window_energy(segment, sigma)
+                if bounded:
+                    e_i, e_o = albedo_excess(segment, wi, wo, wavelength, sigma)
+                    excess = (spectrum(excess[0] + e_i), spectrum(excess[1] + e_o))
             if want_pdf and has_glossy:
                 weight = sampling.selection_weight(segment, kz0 * segment.depth, sigma, coherent)
                 # (never in place: the inputs of a symbolic branch must stay untouched)
                 energy = energy + weight
                 density = density + weight * self._scratch_density(segment, xi0_x, xi0_y, wi, lam0, kz0)
-            return (a, b), energy, density
+            return (a, b), energy, density, excess
 
-        (a, b), energy, density = for_each_segment(
-            self.grid, jac, WINDOW_RADIUS_SIGMAS * sigma, (field, zero_f, zero_f), body, active & has_glossy)
+        # (the excess sums join the loop state only when they are used: no cost for the other phases)
+        (a, b), energy, density, excess = for_each_segment(
+            self.grid, jac, WINDOW_RADIUS_SIGMAS * sigma, (field, zero_f, zero_f, (zero_s, zero_s) if bounded else ()),
+            body, active & has_glossy)
 
         value = pdf = None
         if want_value:
+            if bounded:  # f / max(1, Â(ω_i), Â(ω_o)): reciprocal, albedo ≤ 1 (docs/model.md §4.1)
+                a, b = self._bounded(a, b, *excess)
             value = self._value(si, wo, wavelength, lobe, a, b, has_glossy, has_diffuse, active)
         if want_pdf:
             q_d, q_s, q_m = self._strategy_weights(si, energy, wi.z, has_glossy, has_diffuse, active)
@@ -146,6 +156,13 @@ class Model:
             pdf = dr.select(active, specular + q_d * wo.z * (1.0 / math.pi), 0.0)
             pdf = dr.select(dr.isfinite(pdf), pdf, 0.0)
         return value, pdf
+
+    @staticmethod
+    def _bounded(a, b, excess_i, excess_o):
+        """The field scaled by ``1/√max(1, Â(ω_i), Â(ω_o))``, Â = 1 + Σ_k e_k (so f_r by the square's inverse)."""
+        norm = dr.maximum(1.0 + dr.maximum(excess_i, excess_o), 1.0)
+        scale = dr.rsqrt(norm)
+        return mi.Spectrum(a * scale), mi.Spectrum(b * scale)
 
     def _scratch_density(self, segment, xi_x, xi_y, wi, lam0, kz0):
         """``p_k(ξ)`` of the scratch-line sampler of one segment (hero wavelength)."""

@@ -25,7 +25,8 @@ BASE_MATERIALS = (
     ("Cr", "Chromium", "Chromium (Mitsuba conductor 'Cr')"),
     ("none", "Perfect Mirror", "Reflects everything (no Fresnel term)"),
 )
-#: Depth phase per unit depth: "kirchhoff" 2π(γ_i + γ_o)/λ (docs/model.md §2) or "incidence" 4πγ_i/λ.
+#: Depth phase per unit depth: "kirchhoff" 2π(γ_i + γ_o)/λ (docs/model.md §2), "incidence" 4πγ_i/λ, or
+#: "bounded": the Kirchhoff BRDF divided by max(1, Â(ω_i), Â(ω_o)), Â an albedo estimate (docs/model.md §4.1).
 DEFAULT_DEPTH_PHASE = "kirchhoff"
 #: (code, label, description) of the depth phases offered in the user interface.
 DEPTH_PHASE_ITEMS = (
@@ -33,6 +34,9 @@ DEPTH_PHASE_ITEMS = (
                                "several µm) reflect up to 40 % more than falls on them"),
     ("incidence", "Incidence", "Phase 4πγi·D/λ: never reflects more than falls on it, but not reciprocal "
                                "(docs/bsdf.md, Energy)"),
+    ("bounded", "Bounded", "The paper's phase, divided where a deep scratch would reflect more than falls on it: "
+                           "reciprocal, unchanged for shallow scratches, but each scratch in view costs about "
+                           "a hundred times more (docs/bsdf.md, Energy)"),
 )
 DEPTH_PHASES = tuple(code for code, _, _ in DEPTH_PHASE_ITEMS)
 #: Where rectangular scratches cross: "additive" sums their transfer functions (the paper, docs/model.md §2),

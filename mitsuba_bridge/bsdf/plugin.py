@@ -86,7 +86,12 @@ diffraction inside a Gaussian coherence window around each shading point.
        reciprocal, deep grooves may reflect more than they receive) or
        ``incidence`` (4πγ_i d/λ, a phase screen fixed by the incident
        direction: conserves energy for any depth, but is not reciprocal and
-       departs from the Kirchhoff field off the mirror direction).
+       departs from the Kirchhoff field off the mirror direction) or
+       ``bounded`` (the Kirchhoff BRDF divided by max(1, Â(ω_i), Â(ω_o)),
+       Â the directional albedo estimated per scratch segment: reciprocal,
+       albedo ≤ 1 for any depth, unchanged for shallow scratches; eval
+       costs tens of times more per segment in the window; coherent mode
+       only, docs/bsdf.md).
 
 The model.  Each evaluation is one coherence window w = exp(-|x - x0|²/2σ²) at
 the shading point x0.  The reflected far field is the mirror lobe of the
@@ -106,7 +111,9 @@ shallow scratches; the depth phase 2π(γ_i + γ_o)d/λ depends on the outgoing
 direction, so deep grooves can reflect a few percent more than they receive
 (the scalar model itself, not this implementation: docs/bsdf.md);
 depth_phase="incidence" fixes the screen by the incident direction and
-conserves energy for any depth, at the price of reciprocity.  Scratch
+conserves energy for any depth, at the price of reciprocity;
+depth_phase="bounded" keeps the Kirchhoff phase and reciprocity and divides
+by the estimated albedo where it exceeds 1, at the price of speed.  Scratch
 crossings add their transfer functions (the paper's limitation) unless
 crossings="height_field" gives each overlap of rectangular scratches the
 deepest depth.  Scratches

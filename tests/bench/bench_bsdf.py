@@ -49,6 +49,8 @@ def main():
     parser.add_argument("--dense-lanes", type=int, default=1 << 17)
     parser.add_argument("--crossings", action="store_true", help="time crossings = height_field against additive")
     parser.add_argument("--worn", action="store_true", help="with --crossings: the worn plate too (> 23 GB)")
+    parser.add_argument("--depth-phases", nargs="*", default=["kirchhoff"],
+                        help="time the segment rows under these depth phases (e.g. kirchhoff bounded)")
     args = parser.parse_args()
 
     import drjit as dr
@@ -116,11 +118,15 @@ def main():
         references[name] = measure(mi.load_dict(d))
         print(f"{name:34s} " + " ".join(f"{v:12.3e}" for v in references[name]))
     results = {}
-    for count in args.segments:
-        bsdf = mi.load_dict(scratch_bsdf.plugin_dict(parallel_set(count), unit_scale=unit_scale))
-        results[count] = measure(bsdf)
-        print(f"{'scratch_diffraction, ' + str(count) + ' segments':34s} "
-              + " ".join(f"{v:12.3e}" for v in results[count]))
+    for phase in args.depth_phases:
+        for count in args.segments:
+            bsdf = mi.load_dict(scratch_bsdf.plugin_dict(parallel_set(count), unit_scale=unit_scale,
+                                                         depth_phase=phase))
+            timings = measure(bsdf)
+            if phase == args.depth_phases[0]:
+                results[count] = timings
+            label = f"scratch, {count} segments" + ("" if phase == "kirchhoff" else f", {phase}")
+            print(f"{label:34s} " + " ".join(f"{v:12.3e}" for v in timings), flush=True)
 
     if args.dense:
         dense_sets(args, rng)

@@ -98,7 +98,7 @@ def test05_missing_and_malformed_files_name_file_and_field(plate, tmp_path):
     ({"coherence_diameter": -1e-6}, "'coherence_diameter' must be a positive length"),
     ({"unit_scale": 0.0}, "'unit_scale' must be a positive length"),
     ({"filename": "a.npz", "scratch_uv": mi.TensorXf64(np.zeros((1, 0, 2)))}, "either 'filename' or"),
-    ({"depth_phase": "fresnel"}, "'depth_phase' must be one of kirchhoff, incidence, got 'fresnel'"),
+    ({"depth_phase": "fresnel"}, "'depth_phase' must be one of kirchhoff, incidence, bounded, got 'fresnel'"),
 ])
 def test06_bad_parameters_are_refused_at_load(extra, message):
     with pytest.raises(RuntimeError, match=message):

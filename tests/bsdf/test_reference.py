@@ -83,6 +83,25 @@ def test01_plugin_matches_brute_force_wave_field(name):
     assert errors[worst] < TOLERANCE, (worst, errors[worst])
 
 
+@pytest.mark.parametrize("name", list(CONFIGS))
+def test01b_bounded_depth_phase_stays_with_the_brute_force_where_it_conserves_energy(name):
+    """depth_phase="bounded" (docs/model.md §4.1) changes f_r only where the estimated albedo of ω_i or
+    ω_o exceeds 1: within 5 % of the brute force where the reference's own albedo is at most 1, and
+    further off by at most the reference's excess (rect_ends_inside at 450 nm, 40°: albedo 1.073, 7 %).
+    The plugin's Kirchhoff albedo stands for the reference's (equal within 1 %, test_physics test05b)."""
+    from test_physics import albedo
+
+    scratches = CONFIGS[name]
+    errors = relative_errors(scratches, None, shading.load_bsdf(scratches, sigma_um=SIGMA_UM, depth_phase="bounded"))
+    kirchhoff = shading.load_bsdf(scratches, sigma_um=SIGMA_UM)
+    for theta, phi in INCIDENCES:
+        reference_albedo = albedo(kirchhoff, shading.direction(theta, phi), SIGMA_UM, WAVELENGTHS_NM * 2)[:2]
+        for wavelength_nm, a in zip(WAVELENGTHS_NM, reference_albedo):
+            for part in ("along", "across"):
+                error = errors[(wavelength_nm, theta, part)]
+                assert error < TOLERANCE + max(0.0, a - 1.0), (wavelength_nm, theta, part, error, a)
+
+
 @pytest.mark.parametrize("name", ["rect_offset", "v_groove_offset", "dense_grating"])
 def test02_plain_separable_model_fails_where_the_plugin_passes(name):
     """docs/model.md §3.3: freezing the window across offset scratches and gratings is measurably off."""
