@@ -46,7 +46,10 @@ FIGURE = Figure(
            "one). The window's reflection is a bright mirror image in which the much fainter glints are lost; "
            "the window is dim, so that the exposure can show the sparkle around the lamp.",
     renders=(Render("table", "300 000 scratches, generated and painted, under a pendant lamp and a window", {},
-                    resolution=(960, 600), samples=384, paper_minutes=93),),
+                    resolution=(960, 600), samples=384, paper_minutes=93),
+             Render("worn", "beyond the paper: the same scratches with crossings as one height field and the "
+                            "bounded depth phase (no scratch reflects more than falls on it)",
+                    {"crossings": "height_field", "depth_phase": "bounded"}, resolution=(960, 600), samples=64)),
 )
 
 
@@ -105,8 +108,10 @@ def _lamp_position():
     return tuple(reflection + mirrored * (LAMP_HEIGHT_M / mirrored[2]))
 
 
-def build_scene(scene, *, resolution=(960, 600), samples: int = 384, scale: float = 1.0, seed: int = 1):
-    """The table, plates, lamp and room; returns the table top. ``scale`` < 1 scratches less (tests)."""
+def build_scene(scene, *, resolution=(960, 600), samples: int = 384, scale: float = 1.0, seed: int = 1,
+                crossings: str = "additive", depth_phase: str = "kirchhoff"):
+    """The table, plates, lamp and room; returns the table top. ``scale`` < 1 scratches less (tests);
+    ``crossings`` and ``depth_phase``: the top's scratch rendering options (docs/bsdf.md)."""
     import bpy
 
     from . import staging
@@ -114,6 +119,7 @@ def build_scene(scene, *, resolution=(960, 600), samples: int = 384, scale: floa
     from ..addon import storage
 
     top = staging.metal_plate("Table top", TABLE_M, metal="Al", height_m=0.0)
+    top.scratch_iridescence.crossings, top.scratch_iridescence.depth_phase = crossings, depth_phase
     for index, (kind, points, settings) in enumerate(painted_strokes(np.random.default_rng(seed))):
         if kind == "SPRAY":
             settings = {**settings, "density": settings["density"] * scale}

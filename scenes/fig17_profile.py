@@ -39,16 +39,21 @@ FIGURE = Figure(
                {"profile": "RECTANGULAR"}, resolution=(720, 540), samples=512, paper_minutes=30),
         Render("triangular", "V-grooves: facet reflections spread the glints, whiter",
                {"profile": "TRIANGULAR"}, resolution=(720, 540), samples=512, paper_minutes=31),
+        Render("triangular-height-field", "beyond the paper: the V-grooves' crossings as one height field "
+               "(the deeper groove wins where two cross)",
+               {"profile": "TRIANGULAR", "crossings": "height_field"}, resolution=(720, 540), samples=64),
     ),
 )
 
 
 def build_scene(scene, *, profile: str = "RECTANGULAR", resolution=(720, 540), samples: int = 512,
-                count: int | None = None):
+                count: int | None = None, crossings: str = "additive"):
     """The plate with the given scratch profile in the lamp studio; returns the plate. ``count`` overrides
-    3 000 (tests)."""
+    3 000 (tests); ``crossings``: the plate's option (docs/bsdf.md)."""
     from . import staging
 
     generate = {**SCRATCHES, "count": count or SCRATCHES["count"], "profile": profile}
-    return staging.studio_plate(scene, generate, resolution=resolution, samples=samples, exposure=EXPOSURE,
-                                size_m=PLATE_M)
+    plate = staging.studio_plate(scene, generate, resolution=resolution, samples=samples, exposure=EXPOSURE,
+                                 size_m=PLATE_M)
+    plate.scratch_iridescence.crossings = crossings
+    return plate

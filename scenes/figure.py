@@ -37,7 +37,10 @@ class Render:
     paper_megapixels: float = 4.0
 
     @property
-    def paper_samples_per_core_second(self) -> float:
+    def paper_samples_per_core_second(self) -> float | None:
+        """The paper's rate for this picture; ``None`` for a render beyond the paper (no time given)."""
+        if not self.paper_minutes:
+            return None
         return paper_samples_per_core_second(self.paper_megapixels, self.paper_minutes)
 
 

@@ -53,7 +53,11 @@ def test01_every_figure_has_renders_its_builder_accepts_and_the_papers_times():
         parameters = inspect.signature(module.build_scene).parameters
         for render in figure.renders:
             assert set(render.options) <= set(parameters), (figure.key, render.name)
-            assert render.paper_minutes > 0 and render.samples > 0
+            assert render.samples > 0
+            # a render of the paper's has its time; one beyond it (options the paper lacks) says so
+            assert (render.paper_minutes > 0) != render.caption.startswith("beyond the paper"), render.name
+            assert (render.paper_samples_per_core_second is None) == (render.paper_minutes == 0)
+        assert figure.renders[0].paper_minutes > 0
     # docs/model.md §10: Fig. 7(b) is 1 MP × 16 384 spp in 15 min on 72 cores, about 2.5e5 samples per core-second.
     assert fig07_plate.FIGURE.renders[0].paper_samples_per_core_second == pytest.approx(2.53e5, rel=0.01)
 
@@ -76,8 +80,9 @@ def test03_fig17_profiles_differ_only_in_the_cross_section(empty_scene):
     fig17_profile.build_scene(empty_scene, profile="RECTANGULAR", count=150, **TINY)
     rectangular = scratches_on("Scratched plate")
     bpy.ops.wm.read_factory_settings(use_empty=True)
-    fig17_profile.build_scene(bpy.context.scene, profile="TRIANGULAR", count=150, **TINY)
+    fig17_profile.build_scene(bpy.context.scene, profile="TRIANGULAR", count=150, crossings="height_field", **TINY)
     triangular = scratches_on("Scratched plate")
+    assert bpy.data.objects["Scratched plate"].scratch_iridescence.crossings == "height_field"
     assert np.array_equal(rectangular.uv, triangular.uv) and np.array_equal(rectangular.seed, triangular.seed)
     assert set(rectangular.profile) == {scratch.Profile.RECTANGULAR}
     assert set(triangular.profile) == {scratch.Profile.TRIANGULAR}
