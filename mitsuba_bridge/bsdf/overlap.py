@@ -37,7 +37,7 @@ from .complexmath import Cx, expi, scaled_sinc
 from .polygon import Strip, clipped_cell
 from .segment import SegmentGeometry
 
-__all__ = ["Parallelogram", "cell_centre", "crossing_correction", "parallelogram"]
+__all__ = ["Parallelogram", "below", "cell_centre", "crossing_correction", "depth_plane", "parallelogram"]
 
 #: The overlap is cut into n_1 × n_2 sub-parallelograms with edges at most this many σ long, each with
 #: its own window expansion: the neglected curvature then stays below ~1 % (docs/model.md §3.4).
@@ -131,23 +131,39 @@ def _cell_integral(shape: Parallelogram, cx, cy, xi_x, xi_y, sigma) -> Cx:
             * scaled_sinc(xi_x * e2x + xi_y * e2y, im2) * (dr.exp(exponent) * area))
 
 
-def _depth_plane(segment: SegmentGeometry, cx, cy):
+def depth_plane(segment: SegmentGeometry, cx, cy, side=None):
     """The depth over the cell centred at ``c`` as a plane: ``(h(c), ∇h)`` (µm, per µm).
 
-    Flat bottom: D.  V-groove: D(1 - 2|u|/W) with u = n·x - a⊥, linear on the cell because the cell
-    lies on one side of the centre line (:func:`parallelogram`)."""
+    Flat bottom: D.  V-groove: D(1 - 2|u|/W) with u = n·x - a⊥, linear on either side of the centre
+    line: ``side`` (±1, the sign of u) or, by default, the side of ``c`` (cells of :func:`parallelogram`
+    lie on one side)."""
     nx, ny = -segment.dy, segment.dx
     u = nx * cx + ny * cy - segment.a_perp
-    side = dr.select(u >= 0.0, 1.0, -1.0)
+    if side is None:
+        side = dr.select(u >= 0.0, 1.0, -1.0)
     rate = dr.select(segment.triangular, -2.0 * segment.depth * side / segment.width, 0.0)
     return segment.depth + rate * u, rate * nx, rate * ny
+
+
+def below(lower, upper, reach):
+    """The half-plane (a :class:`.polygon.Strip`) of the cell where the plane ``lower`` = (h(c), ∇h) is at
+    most the plane ``upper``: ``m·y <= t`` (y = x - c), with t clipped to ±``reach`` (the cell lies within
+    reach/2 of c); all or nothing where the planes are parallel."""
+    gx, gy = lower[1] - upper[1], lower[2] - upper[2]
+    level = lower[0] - upper[0]
+    norm = dr.sqrt(gx * gx + gy * gy)
+    tilted = norm > 1e-6  # else h_1 - h_2 varies by less than a picometre over the cell
+    inv = dr.rcp(dr.select(tilted, norm, 1.0))
+    mx, my = dr.select(tilted, gx * inv, 1.0), dr.select(tilted, gy * inv, 0.0)
+    t = dr.select(tilted, dr.clip(-level * inv, -reach, reach), dr.select(level <= 0.0, reach, -reach))
+    return Strip(mx, my, t)
 
 
 def _sloped_correction(first: SegmentGeometry, second: SegmentGeometry, shape: Parallelogram, active,
                        xi_x, xi_y, k_z, sigma) -> Cx:
     """``C(ξ) = -∫_P (e^{ik_z min(h_1, h_2)} - 1) w e^{-2πiξ·x}`` where a depth varies across P (docs/model.md §3.4).
 
-    On a cell both depths are planes (:func:`_depth_plane`); the line h_1 = h_2 cuts it into Q_1 (h_1 ≤ h_2)
+    On a cell both depths are planes (:func:`depth_plane`); the line h_1 = h_2 cuts it into Q_1 (h_1 ≤ h_2)
     and Q_2, and over each ``e^{ik_z h}`` with h = h(c) + ∇h·(x - c) is a shift of the frequency by
     k_z ∇h / 2π, so ``∫_Q e^{ik_z h} w e^{-2πiξ·x} = e^{ik_z (h(c) - ∇h·c)} ∫_Q w e^{-2πiξ'·x}``, the clipped
     cell of :mod:`.polygon`.  The -1 is the whole cell's integral.
@@ -163,24 +179,20 @@ def _sloped_correction(first: SegmentGeometry, second: SegmentGeometry, shape: P
 
     def step(index, re, im):
         cx, cy = cell_centre(shape, index, columns)
-        h1, g1x, g1y = _depth_plane(first, cx, cy)
-        h2, g2x, g2y = _depth_plane(second, cx, cy)
-        # h_1 <= h_2 where m·y <= t (y = x - c, m the unit gradient of h_1 - h_2); t clipped to the cell's reach
+        h1, g1x, g1y = depth_plane(first, cx, cy)
+        h2, g2x, g2y = depth_plane(second, cx, cy)
         gx, gy = g1x - g2x, g1y - g2y
-        norm = dr.sqrt(gx * gx + gy * gy)
         level = h1 - h2
-        tilted = norm > 1e-6  # else h_1 - h_2 varies by less than a picometre over the cell
-        inv = dr.rcp(dr.select(tilted, norm, 1.0))
-        mx, my = dr.select(tilted, gx * inv, 1.0), dr.select(tilted, gy * inv, 0.0)
-        t = dr.select(tilted, dr.clip(-level * inv, -reach, reach), dr.select(level <= 0.0, reach, -reach))
+        lower_half = below((h1, g1x, g1y), (h2, g2x, g2y), reach)  # h_1 <= h_2
+        upper_half = Strip(-lower_half.nx, -lower_half.ny, -lower_half.offset)
         phase1, phase2 = k_z * (h1 - g1x * cx - g1y * cy), k_z * (h2 - g2x * cx - g2y * cy)
 
         def split(cx, cy):
             """The line h_1 = h_2 crosses the cell: two clipped polygons."""
             cell = [Strip(-first.dy, first.dx, 0.0, half1), Strip(-second.dy, second.dx, 0.0, half2)]
-            lower = clipped_cell(cell + [Strip(mx, my, t)], cx, cy,
+            lower = clipped_cell(cell + [lower_half], cx, cy,
                                  spectrum(xi_x - scale * g1x), spectrum(xi_y - scale * g1y), sigma)
-            upper = clipped_cell(cell + [Strip(-mx, -my, -t)], cx, cy,
+            upper = clipped_cell(cell + [upper_half], cx, cy,
                                  spectrum(xi_x - scale * g2x), spectrum(xi_y - scale * g2y), sigma)
             term = expi(phase1) * lower + expi(phase2) * upper
             return term.re, term.im

@@ -40,7 +40,7 @@ import mitsuba as mi
 from .complexmath import Cx, expi
 from .crossings import MIN_SINE
 from .lookup import Grid, LocalJacobian, for_each_segment, segment_at
-from .overlap import Parallelogram, cell_centre, parallelogram
+from .overlap import Parallelogram, below, cell_centre, depth_plane, parallelogram
 from .polygon import Strip, clipped_cell
 from .segment import SegmentGeometry
 
@@ -88,30 +88,34 @@ def add_triples(grid: Grid, jac: LocalJacobian, first: SegmentGeometry, second: 
     second_u, second_v = _uv_direction(grid, second_piece, True)
 
     def keep(near: SegmentGeometry, piece, state):
-        count, *slots = state
-        # the piece holding the foot point of the crossing on its centre line, rectangular, of larger angle
+        count, grooved, *slots = state
+        # the piece holding the foot point of the crossing on its centre line, of larger angle
         foot = -near.c
-        usable = (foot >= 0.0) & (foot < near.length) & ~near.triangular
+        usable = (foot >= 0.0) & (foot < near.length)
         other = segment_at(grid, jac, piece, usable)
         usable &= _angle(other) > floor
         u, v = _uv_direction(grid, piece, usable)
         usable &= (dr.abs(first_u * v - first_v * u) >= MIN_SINE) & (dr.abs(second_u * v - second_v * u) >= MIN_SINE)
         usable &= _meets(shape, other) & (count < SLOTS)
         slots = [dr.select(usable & (count == k), piece, slot) for k, slot in enumerate(slots)]
-        return (dr.select(usable, count + 1, count), *slots)
+        grooved = dr.select(usable & near.triangular, grooved | (mi.UInt32(1) << count), grooved)
+        return (dr.select(usable, count + 1, count), grooved, *slots)
 
-    empty = tuple(dr.zeros(mi.UInt32) for _ in range(SLOTS + 1))
-    # pairs with a V-groove stop at their pair term (docs/model.md §3.4 bounds what that leaves)
-    count, *slots = for_each_segment(grid, around, radius, empty, keep, ~(first.triangular | second.triangular))
-    # triples (the common case) with three strips per cell, then the higher orders with all of theirs
+    empty = tuple(dr.zeros(mi.UInt32) for _ in range(SLOTS + 2))
+    count, grooved, *slots = for_each_segment(grid, around, radius, empty, keep, mi.Bool(True))
+    # triples (the common case) with three strips per cell, V-grooves included; then the higher orders with
+    # all of theirs, flat bottoms only: a pile with a V-groove stops at order 3 (docs/model.md §3.4 bounds the rest)
     field = _add_subsets(grid, jac, shape, first, second, count, slots, 1, 1, xi_x, xi_y, k_z, sigma, field)
+    banned = dr.select(first.triangular | second.triangular, mi.UInt32((1 << SLOTS) - 1), grooved)
     return _add_subsets(grid, jac, shape, first, second, count, slots, 2, MAX_ORDER - 2, xi_x, xi_y, k_z, sigma,
-                        field)
+                        field, banned)
 
 
-def _add_subsets(grid, jac, shape, first, second, count, slots, smallest, largest, xi_x, xi_y, k_z, sigma, field):
+def _add_subsets(grid, jac, shape, first, second, count, slots, smallest, largest, xi_x, xi_y, k_z, sigma, field,
+                 banned=None):
     """Add ``±(e^{iκ_min} - 1) ∫`` over the overlap of (first, second) with each valid subset of ``slots``
-    of ``smallest`` to ``largest`` lines."""
+    of ``smallest`` to ``largest`` lines (none of the slots in the bit mask ``banned``); for single lines
+    where a V-groove takes part, ``∫ (e^{ik_z min h} - 1)`` (:func:`_sloped_triple`)."""
     spectrum = type(xi_x)
     subsets = mi.UInt32(1) << count  # masks 1 .. 2^count - 1
 
@@ -128,6 +132,8 @@ def _add_subsets(grid, jac, shape, first, second, count, slots, smallest, larges
     def valid(mask):
         picked, size = chosen(mask)
         ok = (size >= smallest) & (size <= largest)
+        if banned is not None:
+            ok &= (mask & banned) == 0
         directions = [_uv_direction(grid, piece, True) for piece in picked]
         for j in range(largest):
             for k in range(j + 1, largest):
@@ -154,10 +160,21 @@ def _add_subsets(grid, jac, shape, first, second, count, slots, smallest, larges
             shallow = dr.select(used, dr.minimum(shallow, line.depth), shallow)
             # an unused place: a strip a million µm wide along the first, which cuts nothing
             lines.append(SegmentGeometry(*(dr.select(used, a, b) for a, b in zip(line, first._replace(width=2e6)))))
-        integral = _overlap_integral(shape, lines, active, xi_x, xi_y, sigma)
+        sloped = None
+        if largest == 1:  # a triple: with a V-groove the depths vary over the overlap
+            third = lines[2]
+            grooved = first.triangular | second.triangular | third.triangular
+            sloped = _sloped_triple(shape, first, second, third, active & grooved, xi_x, xi_y, k_z, sigma)
+            active_flat = active & ~grooved
+        else:
+            active_flat = active
+        integral = _overlap_integral(shape, lines, active_flat, xi_x, xi_y, sigma)
         # Möbius inversion: (-1)^{order+1} (e^{iκ_min} - 1) ∫ over the overlap of order = size + 2
         sign = dr.select((size & 1) == 1, 1.0, -1.0)
-        term = (expi(k_z * shallow) - 1.0) * integral * sign
+        term = (expi(k_z * shallow) - 1.0) * integral
+        if sloped is not None:
+            term = term + sloped
+        term = term * sign
         return (advance(mask), spectrum(dr.select(active, re + term.re, re)),
                 spectrum(dr.select(active, im + term.im, im)))
 
@@ -213,4 +230,61 @@ def _overlap_integral(shape: Parallelogram, lines, usable, xi_x, xi_y, sigma) ->
     zero = dr.zeros(type(xi_x))
     _, re, im = dr.while_loop((skip(mi.UInt32(0)), zero, zero), lambda index, re, im: index < cells, step,
                               label="scratch_overlap_cells")
+    return Cx(re, im)
+
+
+def _sloped_triple(shape: Parallelogram, first, second, third, usable, xi_x, xi_y, k_z, sigma) -> Cx:
+    """``∫_T (e^{ik_z min(h_1, h_2, h_3)} - 1) w e^{-2πiξ·x}`` over the triple overlap T where a V-groove takes
+    part (docs/model.md §3.4).
+
+    On each cell of ``shape`` (where a V-groove, split at its centre line) the pair's depths are planes
+    (:func:`.overlap.depth_plane`); the third strip is taken half by half (each side of its centre line,
+    where its depth is a plane too), and each half splits into the three regions where one depth is the
+    smallest (two half-planes each), every one a clipped polygon at its depth's shifted frequency, as in
+    :func:`.overlap._sloped_correction`.  The -1 is the cell ∩ third strip at ξ.
+    """
+    spectrum = type(xi_x)
+    nx, ny = -third.dy, third.dx
+    reach_third = 0.5 * (dr.abs(nx * shape.e1x + ny * shape.e1y) + dr.abs(nx * shape.e2x + ny * shape.e2y)
+                         + third.width)
+    cells = dr.select(usable, mi.UInt32(shape.n1 * shape.n2), 0)
+    columns = dr.maximum(mi.UInt32(shape.n1), 1)
+    half1 = 0.5 * first.width / shape.n1
+    half2 = 0.5 * second.width / shape.n2
+    reach = dr.norm(mi.Vector2f(shape.e1x, shape.e1y)) + dr.norm(mi.Vector2f(shape.e2x, shape.e2y))
+    scale = k_z * (1.0 / (2.0 * math.pi))
+
+    def misses(index):
+        cx, cy = cell_centre(shape, index, columns)
+        return (index < cells) & (dr.abs(nx * cx + ny * cy - third.a_perp) > reach_third)
+
+    def skip(index):
+        return dr.while_loop((index,), misses, lambda index: (index + 1,), label="scratch_overlap_sloped_skip")[0]
+
+    def region(cell, planes, k, cx, cy):
+        """∫ e^{ik_z h_k} w e^{-2πiξ·x} over the part of ``cell`` where depth ``k`` is the smallest."""
+        h, gx, gy = planes[k]
+        halves = [below(planes[k], planes[j], reach) for j in range(3) if j != k]
+        part = clipped_cell(cell + halves, cx, cy, spectrum(xi_x - scale * gx), spectrum(xi_y - scale * gy), sigma)
+        return expi(k_z * (h - gx * cx - gy * cy)) * part
+
+    def step(index, re, im):
+        index = skip(index)
+        cx, cy = cell_centre(shape, index, columns)
+        pair = [Strip(-first.dy, first.dx, 0.0, half1), Strip(-second.dy, second.dx, 0.0, half2)]
+        centre = third.a_perp - (nx * cx + ny * cy)  # the third centre line, relative to c
+        total = -clipped_cell(pair + [Strip(nx, ny, centre, 0.5 * third.width)], cx, cy, xi_x, xi_y, sigma)
+        first_plane, second_plane = depth_plane(first, cx, cy), depth_plane(second, cx, cy)
+        for side in (1.0, -1.0):
+            cell = pair + [Strip(nx, ny, centre + side * 0.25 * third.width, 0.25 * third.width)]
+            planes = (first_plane, second_plane, depth_plane(third, cx, cy, side))
+            for k in range(3):
+                total = total + region(cell, planes, k, cx, cy)
+        inside = index < cells
+        return (index + 1, spectrum(dr.select(inside, re + total.re, re)),
+                spectrum(dr.select(inside, im + total.im, im)))
+
+    zero = dr.zeros(spectrum)
+    _, re, im = dr.while_loop((skip(mi.UInt32(0)), zero, zero), lambda index, re, im: index < cells, step,
+                              label="scratch_overlap_sloped_triple")
     return Cx(re, im)
