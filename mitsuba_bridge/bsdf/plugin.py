@@ -115,8 +115,7 @@ conserves energy for any depth, at the price of reciprocity;
 depth_phase="bounded" keeps the Kirchhoff phase and reciprocity and divides
 by the estimated albedo where it exceeds 1, at the price of speed.  Scratch
 crossings add their transfer functions (the paper's limitation) unless
-crossings="height_field" gives each overlap of rectangular scratches the
-deepest depth.  Scratches
+crossings="height_field" gives each overlap the deepest depth.  Scratches
 are UV polylines (mesh UVs required); phases are formed relative to x0, so
 float32 suffices at any object size.  Renders need an unpolarised spectral JIT
 variant (llvm_ad_spectral, cuda_ad_spectral): diffraction colours do not exist

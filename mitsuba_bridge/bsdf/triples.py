@@ -1,4 +1,4 @@
-"""Overlaps of three to five crossing rectangular pieces: the higher orders of the height field (docs/model.md §3.4).
+"""Overlaps of three to five crossing pieces: the higher orders of the height field (docs/model.md §3.4).
 
 The pair corrections of :mod:`.overlap` are the first two orders of an
 inclusion–exclusion over the scratches covering a point; where three strips
@@ -7,6 +7,9 @@ overlap (region T) the third order adds back
     C_3(ξ) = +(e^{iκ_min} - 1) ∫_T w(x) e^{-2πiξ·x} dx,      κ_min = k_z min(D_1, D_2, D_3),
 
 the fourth subtracts the same over fourfold overlaps, the fifth adds again.
+Where a V-groove takes part the depth varies over T and the third order is
+``+∫_T (e^{ik_z min(h_1, h_2, h_3)} - 1) w e^{-2πiξ·x}`` (:func:`_sloped_triple`);
+overlaps of four and five with a V-groove are left out (order 3 is kept).
 
 **Finding the overlaps (in the kernel).**  Whether three strips overlap depends
 on their widths in µm, which the CPU cannot relate to UV (the Jacobian is the
@@ -21,7 +24,7 @@ pieces C whose strip meets the parallelogram P_AB and that
   into pieces counts once);
 * have a larger direction angle (mod π, local frame) than A and B: an overlap
   belongs to the pair of its two lines of lowest angle, so it is counted once;
-* make pairs with A and B that the tables correct: rectangular, |sin| >=
+* make pairs with A and B that the tables correct: |sin| >=
   ``crossings.MIN_SINE`` in UV.
 
 Every subset of the kept lines whose own pairs the tables correct (|sin| in
