@@ -5,7 +5,9 @@ below do, and need an active variant (``mi.set_variant(...)``).
 
 Layout: pure Dr.Jit maths in :mod:`.complexmath`, :mod:`.faddeeva`,
 :mod:`.window`, :mod:`.profiles`, :mod:`.segment`, :mod:`.sampling`,
-:mod:`.overlap` (the height-field correction of a crossing pair); the
+:mod:`.overlap` (the height-field correction of a crossing pair), :mod:`.polygon`
+(windowed transforms of clipped cells) and :mod:`.triples` (overlaps of three to five),
+:mod:`.energy` (the albedo estimate of ``depth_phase="bounded"``); the
 numpy side in :mod:`.tables` (segment table, UV grid, cell size), :mod:`.references`
 (the grid's references to the pieces, sorted by offset), :mod:`.crossings`
 (crossing pairs of pieces) and :mod:`.memory` (in-memory parameters); the per-lane model in :mod:`.model` with the grid walk
