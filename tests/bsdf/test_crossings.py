@@ -66,6 +66,20 @@ def test02_polyline_vertices_and_parallel_tracks_give_no_pair():
     assert tables.build_tables(probe.scratch_set(sliver[:1] + v_groove[1:])).crossing_count == 0
 
 
+def test02b_a_set_crossing_itself_too_often_is_refused_with_one_clear_error(monkeypatch):
+    """Beyond crossings.MAX_PAIRS (lowered here from 5e7 to 3) the build stops with TooManyCrossings instead of
+    exhausting the memory; through the plugin the message reaches the user."""
+    grid = [ref.Scratch((-30, y), (30, y), 1.0, 0.2) for y in (-2.1, 0.3, 2.2)] + \
+        [ref.Scratch((x, -30), (x, 30), 1.0, 0.3) for x in (-1.9, 0.2, 2.3)]
+    assert len(pairs_of(grid)[1]) == 9
+    monkeypatch.setattr(crossings, "MAX_PAIRS", 3)
+    with pytest.raises(crossings.TooManyCrossings, match="cross each other more than 3 times"):
+        pairs_of(grid)
+    with pytest.raises(Exception, match="cross each other more than 3 times.*crossings = 'additive'"):
+        probe.load_bsdf(grid, crossings="height_field")
+    assert "additive" in str(probe.load_bsdf(grid))  # the additive model lists nothing
+
+
 def test03_the_options_are_checked():
     with pytest.raises(Exception, match="crossings"):
         probe.load_bsdf([], crossings="deepest")
