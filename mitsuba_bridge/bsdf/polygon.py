@@ -139,7 +139,8 @@ def clipped_cell(strips, cx, cy, xi_x, xi_y, sigma) -> Cx:
             terms.append((sign * line.nx, sign * line.ny, px, py, dx, dy, length))
 
     # curvature of the window by its mean over Ω: e^{-<|y|²>/(2σ²)}; w(c) e^{..} joins the exponents
-    mean_square = second * dr.rcp(dr.maximum(area, 1e-30))
+    # (a sliver's moments are rounding noise: a negative mean square would grow the window by up to e^60)
+    mean_square = dr.maximum(second * dr.rcp(dr.maximum(area, 1e-30)), 0.0)
     base_exponent = -(0.5 * (cx * cx + cy * cy) + 0.5 * mean_square) * inv_sigma2
     zeta_a = Cx(xi_x * ax + xi_y * ay, -(eta_x * ax + eta_y * ay))
     for normal_x, normal_y, px, py, dx, dy, length in terms:
