@@ -52,6 +52,8 @@ class Model:
     height_field: bool = False
     #: with height_field: add the triple-overlap terms too (docs/model.md §3.4); off only to measure them
     triples: bool = True
+    #: with height_field: scale the field back to |U| <= 2πσ² (docs/model.md §3.4); off only to test the terms
+    clamp_to_height_field_bound: bool = True
 
     # ------------------------------------------------------------- pieces
     def _reflectance(self, si, cos_theta, active):
@@ -145,6 +147,8 @@ class Model:
 
         value = pdf = None
         if want_value:
+            if self.height_field and coherent and self.clamp_to_height_field_bound:
+                a, b = self._within_height_field_bound(a, b, sigma)
             if bounded:  # f / max(1, Â(ω_i), Â(ω_o)): reciprocal, albedo ≤ 1 (docs/model.md §4.1)
                 a, b = self._bounded(a, b, *excess)
             value = self._value(si, wo, wavelength, lobe, a, b, has_glossy, has_diffuse, active)
@@ -156,6 +160,18 @@ class Model:
             pdf = dr.select(active, specular + q_d * wo.z * (1.0 / math.pi), 0.0)
             pdf = dr.select(dr.isfinite(pdf), pdf, 0.0)
         return value, pdf
+
+    @staticmethod
+    def _within_height_field_bound(a, b, sigma):
+        """The field scaled back to ``|U| <= 2πσ²`` where it exceeds it (docs/model.md §3.4).
+
+        Every height field has |T| = 1, so ``|U| <= ∫ w = 2πσ²``; the truncated inclusion–exclusion can
+        exceed that in piles beyond its orders and where mutually nearly parallel scratches (left
+        additive among themselves) all cross another one."""
+        limit2 = (2.0 * math.pi * sigma * sigma) ** 2
+        size2 = a * a + b * b
+        scale = dr.select(size2 > limit2, dr.sqrt(limit2 / dr.maximum(size2, 1e-30)), 1.0)
+        return mi.Spectrum(a * scale), mi.Spectrum(b * scale)
 
     @staticmethod
     def _bounded(a, b, excess_i, excess_o):
