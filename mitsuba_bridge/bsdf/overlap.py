@@ -35,6 +35,7 @@ import mitsuba as mi
 
 from .complexmath import Cx, expi, scaled_sinc
 from .polygon import Strip, clipped_cell
+from .profiles import MIN_WIDTH_UM
 from .segment import SegmentGeometry
 
 __all__ = ["Parallelogram", "below", "cell_centre", "crossing_correction", "depth_plane", "parallelogram"]
@@ -141,7 +142,8 @@ def depth_plane(segment: SegmentGeometry, cx, cy, side=None):
     u = nx * cx + ny * cy - segment.a_perp
     if side is None:
         side = dr.select(u >= 0.0, 1.0, -1.0)
-    rate = dr.select(segment.triangular, -2.0 * segment.depth * side / segment.width, 0.0)
+    width = dr.maximum(segment.width, MIN_WIDTH_UM)  # (a zero width would make the facet slope infinite)
+    rate = dr.select(segment.triangular, -2.0 * segment.depth * side / width, 0.0)
     return segment.depth + rate * u, rate * nx, rate * ny
 
 
