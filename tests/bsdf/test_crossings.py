@@ -332,9 +332,10 @@ def test12_a_v_groove_crossing_matches_the_height_field():
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name", list(V_PAIRS))
-def test13_v_groove_pairs_match_the_height_field_everywhere(name):
-    """All nine combinations of 450/550/650 nm and 0/40/70° (measured 0.02-0.31 %)."""
-    out = v_errors(V_PAIRS[name], 2.0, ALL_COMBOS, 19, 0.015)
+def test13_v_groove_pairs_match_the_height_field_at_every_wavelength_and_incidence(name):
+    """450/550/650 nm each at a different incidence of 0/40/70° (all nine combinations, in
+    tests/bench/bench_crossings.py --v-grooves: 0.18-0.62 %)."""
+    out = v_errors(V_PAIRS[name], 2.0, [(450.0, 0.0), (550.0, 40.0), (650.0, 70.0)], 19, 0.015)
     assert max(v[1] for v in out.values()) < 0.01, out
     assert max(v[0] for v in out.values()) > 0.3, out
 
