@@ -39,15 +39,15 @@ DEPTH_PHASE_ITEMS = (
                            "a hundred times more (docs/bsdf.md, Energy)"),
 )
 DEPTH_PHASES = tuple(code for code, _, _ in DEPTH_PHASE_ITEMS)
-#: Where rectangular scratches cross: "additive" sums their transfer functions (the paper, docs/model.md §2),
+#: Where scratches cross: "additive" sums their transfer functions (the paper, docs/model.md §2),
 #: "height_field" gives the overlap the deeper one's depth (docs/model.md §3.4).
 DEFAULT_CROSSINGS = "additive"
 #: (code, label, description) of the crossing treatments offered in the user interface.
 CROSSING_ITEMS = (
     ("additive", "Additive", "Overlapping scratches add their effects, as in the paper: a crossing "
                              "counts both depths"),
-    ("height_field", "Height Field", "Where rectangular scratches cross, the deepest one wins, as on a real "
-                                     "surface (several times slower on densely scratched sets; V-grooves "
-                                     "and nearly parallel overlaps stay additive)"),
+    ("height_field", "Height Field", "Where scratches cross, the deepest one wins, as on a real surface "
+                                     "(several times slower on densely scratched sets, V-grooves most; "
+                                     "nearly parallel overlaps stay additive)"),
 )
 CROSSINGS = tuple(code for code, _, _ in CROSSING_ITEMS)
