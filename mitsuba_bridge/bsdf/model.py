@@ -48,7 +48,7 @@ class Model:
     k: object = None
     diffuse: object = None  #: mi.Texture or None
     depth_phase: str = "kirchhoff"  #: or "incidence", "bounded" (docs/bsdf.md, Energy)
-    #: correct crossings of rectangular pieces to the height field (docs/model.md §3.4; coherent mode)
+    #: correct crossings of pieces to the height field (docs/model.md §3.4; coherent mode)
     height_field: bool = False
     #: with height_field: add the triple-overlap terms too (docs/model.md §3.4); off only to measure them
     triples: bool = True
