@@ -19,6 +19,15 @@ def direction(theta_deg, phi_deg=0.0):
     return np.array([np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), np.cos(t)])
 
 
+def direction_pairs(rng, count):
+    """``(wi, wo)``: ``count`` random pairs of directions, cos θ uniform in [0.05, 1] (reciprocity tests)."""
+    theta = np.degrees(np.arccos(rng.uniform(0.05, 1.0, (2, count))))
+    phi = rng.uniform(0, 360, (2, count))
+    wi = np.array([direction(t, p) for t, p in zip(theta[0], phi[0])])
+    wo = np.array([direction(t, p) for t, p in zip(theta[1], phi[1])])
+    return wi, wo
+
+
 def uniform_interaction(count, wi, wavelengths_nm=(550, 600, 450, 650), uv=X0_UV):
     """Like :func:`interaction`, built from scalars only (any width, e.g. inside a chi² adapter)."""
     si = dr.zeros(mi.SurfaceInteraction3f, count)

@@ -123,10 +123,7 @@ def test05_reciprocal_and_invariant_under_the_uv_map():
     scratches = TWO + [ref.Scratch((-20, -3), (20, 4), 0.8, 0.15), ref.Scratch((-3, -20), (1, 20), 1.2, 0.3, ref.TRI)]
     rng = np.random.default_rng(5)
     count = 4000
-    theta = np.degrees(np.arccos(rng.uniform(0.05, 1.0, (2, count))))
-    phi = rng.uniform(0, 360, (2, count))
-    wi = np.array([shading.direction(t, p) for t, p in zip(theta[0], phi[0])])
-    wo = np.array([shading.direction(t, p) for t, p in zip(theta[1], phi[1])])
+    wi, wo = shading.direction_pairs(rng, count)
     bsdf = shading.load_bsdf(scratches, sigma_um=2.0, material="Cu", crossings="height_field")
     forward, backward = shading.eval_brdf(bsdf, wi, wo), shading.eval_brdf(bsdf, wo, wi)
     np.testing.assert_allclose(forward, backward, rtol=2e-3, atol=1e-6 * forward.max())

@@ -234,10 +234,7 @@ def test06_reciprocity():
     scratches = [ref.Scratch((-20, y), (20, y), 0.6, 0.15) for y in np.arange(-4.0, 4.01, 1.2)]
     scratches += [ref.Scratch((-1, -3), (2, 3), 1.2, 0.4, ref.TRI), ref.Scratch((-1, 0.5), (1, 0.2), 0.8, 0.2)]
     count = 20000
-    theta = np.degrees(np.arccos(rng.uniform(0.05, 1.0, (2, count))))
-    phi = rng.uniform(0, 360, (2, count))
-    wi = np.array([shading.direction(t, p) for t, p in zip(theta[0], phi[0])])
-    wo = np.array([shading.direction(t, p) for t, p in zip(theta[1], phi[1])])
+    wi, wo = shading.direction_pairs(rng, count)
     for coherent in (True, False):
         bsdf = shading.load_bsdf(scratches, sigma_um=1.5, material="Cu", coherent=coherent,
                                  diffuse_reflectance=0.1)
@@ -253,10 +250,7 @@ def test06b_bounded_depth_phase_is_reciprocal():
     scratches = [ref.Scratch((-20, 0.3), (20, 0.3), 1.0, 1.0), ref.Scratch((-20, -2.5), (20, -2.0), 3.0, 3.0),
                  ref.Scratch((-3, -4), (1, 4), 2.0, 1.5, ref.TRI)]
     count = 20000
-    theta = np.degrees(np.arccos(rng.uniform(0.05, 1.0, (2, count))))
-    phi = rng.uniform(0, 360, (2, count))
-    wi = np.array([shading.direction(t, p) for t, p in zip(theta[0], phi[0])])
-    wo = np.array([shading.direction(t, p) for t, p in zip(theta[1], phi[1])])
+    wi, wo = shading.direction_pairs(rng, count)
     bsdf = shading.load_bsdf(scratches, sigma_um=1.5, material="Cu", depth_phase="bounded")
     forward = shading.eval_brdf(bsdf, wi, wo)
     backward = shading.eval_brdf(bsdf, wo, wi)
