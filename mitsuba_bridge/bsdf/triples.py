@@ -195,19 +195,14 @@ def _meets(shape: Parallelogram, other: SegmentGeometry):
     return distance <= 0.5 * (reach + other.width)
 
 
-def _overlap_integral(shape: Parallelogram, lines, usable, xi_x, xi_y, sigma) -> Cx:
-    """``∫ w e^{-2πiξ·x}`` over the overlap of ``lines``' strips, the first two those of ``shape``.
+def _cell_skipper(shape: Parallelogram, extra, cells, columns, label):
+    """``skip(index)``: the first cell from ``index`` on (below ``cells``) that every strip of ``extra`` reaches.
 
-    Only the cells of ``shape`` that every further strip reaches are integrated (:func:`.polygon.clipped_cell`).
+    Cheap (only the cell test), so SIMD lanes wait for each other on touched cells alone.
     """
-    first, second, extra = lines[0], lines[1], lines[2:]
     normals = [(-line.dy, line.dx) for line in extra]
     reaches = [0.5 * (dr.abs(nx * shape.e1x + ny * shape.e1y) + dr.abs(nx * shape.e2x + ny * shape.e2y)
                       + line.width) for (nx, ny), line in zip(normals, extra)]
-    cells = dr.select(usable, mi.UInt32(shape.n1 * shape.n2), 0)
-    columns = dr.maximum(mi.UInt32(shape.n1), 1)
-    half1 = 0.5 * first.width / shape.n1
-    half2 = 0.5 * second.width / shape.n2
 
     def misses(index):
         cx, cy = cell_centre(shape, index, columns)
@@ -216,8 +211,21 @@ def _overlap_integral(shape: Parallelogram, lines, usable, xi_x, xi_y, sigma) ->
             missed |= dr.abs(nx * cx + ny * cy - line.a_perp) > reach
         return (index < cells) & missed
 
-    def skip(index):  # cheap: only the cell test, so lanes wait for each other on touched cells alone
-        return dr.while_loop((index,), misses, lambda index: (index + 1,), label="scratch_overlap_skip")[0]
+    return lambda index: dr.while_loop((index,), misses, lambda index: (index + 1,), label=label)[0]
+
+
+def _overlap_integral(shape: Parallelogram, lines, usable, xi_x, xi_y, sigma) -> Cx:
+    """``∫ w e^{-2πiξ·x}`` over the overlap of ``lines``' strips, the first two those of ``shape``.
+
+    Only the cells of ``shape`` that every further strip reaches are integrated (:func:`.polygon.clipped_cell`).
+    """
+    first, second, extra = lines[0], lines[1], lines[2:]
+    normals = [(-line.dy, line.dx) for line in extra]
+    cells = dr.select(usable, mi.UInt32(shape.n1 * shape.n2), 0)
+    columns = dr.maximum(mi.UInt32(shape.n1), 1)
+    half1 = 0.5 * first.width / shape.n1
+    half2 = 0.5 * second.width / shape.n2
+    skip = _cell_skipper(shape, extra, cells, columns, "scratch_overlap_skip")
 
     def step(index, re, im):
         index = skip(index)
@@ -248,21 +256,13 @@ def _sloped_triple(shape: Parallelogram, first, second, third, usable, xi_x, xi_
     """
     spectrum = type(xi_x)
     nx, ny = -third.dy, third.dx
-    reach_third = 0.5 * (dr.abs(nx * shape.e1x + ny * shape.e1y) + dr.abs(nx * shape.e2x + ny * shape.e2y)
-                         + third.width)
     cells = dr.select(usable, mi.UInt32(shape.n1 * shape.n2), 0)
     columns = dr.maximum(mi.UInt32(shape.n1), 1)
     half1 = 0.5 * first.width / shape.n1
     half2 = 0.5 * second.width / shape.n2
     reach = dr.norm(mi.Vector2f(shape.e1x, shape.e1y)) + dr.norm(mi.Vector2f(shape.e2x, shape.e2y))
     scale = k_z * (1.0 / (2.0 * math.pi))
-
-    def misses(index):
-        cx, cy = cell_centre(shape, index, columns)
-        return (index < cells) & (dr.abs(nx * cx + ny * cy - third.a_perp) > reach_third)
-
-    def skip(index):
-        return dr.while_loop((index,), misses, lambda index: (index + 1,), label="scratch_overlap_sloped_skip")[0]
+    skip = _cell_skipper(shape, [third], cells, columns, "scratch_overlap_sloped_skip")
 
     def region(cell, planes, k, cx, cy):
         """∫ e^{ik_z h_k} w e^{-2πiξ·x} over the part of ``cell`` where depth ``k`` is the smallest."""
