@@ -260,8 +260,8 @@ def _benchmarks(figures, records: dict) -> str:
               "* **Scratch set → BSDF**: decoding the object's stored scratch file and `mi.load_dict` of the "
               "`scratch_diffraction` plugin with it (the UV grid of segments), timed on its own after the render.",
               "* The CD is the slow case documented in [bsdf.md](bsdf.md) (Performance): a query evaluates the "
-              "~25 track pieces inside the coherence window; the lookup (a UV grid of references bisected by "
-              "offset) no longer dominates.",
+              "~25 track pieces inside the coherence window, and finding them (a UV grid of references scanned "
+              "from offset buckets) still costs about twice what evaluating them does.",
               "* **GPU.** No GPU was lent to this task (the device tool says none is available), so the same "
               "scenes at the paper's full 16 384 spp on `cuda_ad_spectral` were not rendered and no GPU time is "
               "reported. On this CPU, 16 384 spp at the resolutions above would take the passes' time × 16 384 / "

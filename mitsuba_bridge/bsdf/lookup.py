@@ -2,7 +2,12 @@
 
 :func:`for_each_segment` runs nested symbolic ``dr.while_loop`` calls over the
 cells of :mod:`.tables` that the window's UV bounding box touches, cell by
-cell, and over each cell's references.  A referenced piece is handed to the
+cell, and over each cell's references.  Each cell's references are sorted by
+their offset along the cell's normal and grouped into **offset buckets** of a
+few references each (:func:`offset_buckets`, built when the tables are
+uploaded): a query jumps to the bucket of the lowest offset that can reach its
+window and scans until the offsets pass the highest, so dense parallel tracks
+cost about the pieces inside the window.  A referenced piece is handed to the
 caller when its centre line passes within the window radius **and** its point
 closest to the shading point lies in the cell being visited: a piece listed in
 several visited cells is thus evaluated exactly once (that point lies inside
@@ -17,14 +22,22 @@ from typing import Callable
 
 import drjit as dr
 import mitsuba as mi
+import numpy as np
 
 from .segment import SegmentGeometry
-from .tables import GridTables, aligned
+from .tables import CELL_DILATION, GridTables, aligned, empty_aligned
 
-__all__ = ["Grid", "LocalJacobian", "for_each_segment", "for_each_crossing", "jacobian", "segment_at"]
+__all__ = ["Grid", "LocalJacobian", "offset_buckets", "for_each_segment", "for_each_crossing", "jacobian", "segment_at"]
 
-#: Cells with more references than this are bisected by offset; shorter ones are scanned.
-BISECT_ABOVE = 6
+#: References per offset bucket (a query scans half a bucket below its window on average).
+BUCKET_REFERENCES = 4
+#: Sets with more references per occupied cell than this scan from offset buckets (a Python choice:
+#: two kernels at most).  The Fig. 10 and Fig. 7(b) plates hold 2.5 and 6.4, the grating 270, the CD 480.
+BUCKETED_ABOVE = 4 * BUCKET_REFERENCES
+#: Padding (cells) of the offset interval a cell's scan covers, against float32 rounding: the
+#: offsets are float32 values of at most ~1.5 cells, x0's offset carries the rounding of its cell
+#: coordinate (the tables' margin less their dilation covers that, relative 1e-6 of the UV extent).
+OFFSET_PADDING = 1e-3
 
 
 @dataclass
@@ -34,37 +47,99 @@ class Grid:
     segments: object  #: mi.Float, 8 per piece
     references: object  #: mi.UInt32, piece indices grouped by cell, sorted by offset
     offsets: object  #: mi.Float, lowest offset of each reference's in-cell part along the cell normal
-    cell_frames: object  #: mi.Float, 4 per cell: normal (u, v), largest offset spread, 0
-    cell_start: object  #: mi.UInt32
+    scan_frames: object  #: mi.Float, 4 per cell: normal (u, v), lowest offset + offset spread, buckets per offset
+    cell_start: object  #: mi.UInt32, first reference of each cell (cells + 1, CSR)
+    cell_bucket: object  #: mi.UInt32, first offset bucket of each cell
+    bucket_start: object  #: mi.UInt32, first reference of each bucket (buckets + 1)
     origin_u: object  #: opaque mi.Float scalars ...
     origin_v: object
     inverse_cell_size: object
     margin: object  #: query padding (cells): the tables' dilation
+    offset_padding: object  #: padding (cells) of each cell's offset interval
     cells_u: object  #: opaque mi.Int32 scalars
     cells_v: object
     crossing_start: object = None  #: mi.UInt32, CSR starts of each piece's crossing partners
     crossing_partner: object = None  #: mi.UInt32
     crossing_along: object = None  #: mi.Float, each crossing's parameter along its lower piece
     max_width: object = None  #: opaque mi.Float: the widest piece's W (µm), the reach of a triple query
+    #: scan from the offset bucket of the window (dense cells) or from each cell's start (sparse sets, whose
+    #: cells hold a bucket or two: the bucket arithmetic would only slow every step down)
+    bucketed: bool = True
 
     @classmethod
     def upload(cls, tables: GridTables) -> "Grid":
+        scan_frames, cell_bucket, bucket_start = offset_buckets(tables.cell_start, tables.offsets,
+                                                                tables.cell_frames)
+        rounding = max(tables.margin - CELL_DILATION, 0.0)
         return cls(
             segments=_owned(mi.Float, tables.segments.ravel()),
             references=_owned(mi.UInt32, tables.references),
             offsets=_owned(mi.Float, tables.offsets),
-            cell_frames=_owned(mi.Float, tables.cell_frames.ravel()),
+            scan_frames=_owned(mi.Float, scan_frames.ravel()),
             cell_start=_owned(mi.UInt32, tables.cell_start),
+            cell_bucket=_owned(mi.UInt32, cell_bucket),
+            bucket_start=_owned(mi.UInt32, bucket_start),
             origin_u=dr.opaque(mi.Float, tables.origin[0]),
             origin_v=dr.opaque(mi.Float, tables.origin[1]),
             inverse_cell_size=dr.opaque(mi.Float, 1.0 / tables.cell_size),
             margin=dr.opaque(mi.Float, tables.margin),
+            offset_padding=dr.opaque(mi.Float, OFFSET_PADDING + rounding),
             cells_u=dr.opaque(mi.Int32, tables.shape[0]),
             cells_v=dr.opaque(mi.Int32, tables.shape[1]),
             crossing_start=_owned(mi.UInt32, tables.crossing_start),
             crossing_partner=_owned(mi.UInt32, tables.crossing_partner),
             crossing_along=_owned(mi.Float, tables.crossing_along),
-            max_width=dr.opaque(mi.Float, float(tables.segments[:tables.piece_count, 6].max(initial=0.0))))
+            max_width=dr.opaque(mi.Float, float(tables.segments[:tables.piece_count, 6].max(initial=0.0))),
+            bucketed=references_per_occupied_cell(tables.cell_start) > BUCKETED_ABOVE)
+
+
+def references_per_occupied_cell(cell_start) -> float:
+    """Mean number of references of the cells that hold any."""
+    counts = np.diff(cell_start.astype(np.int64))
+    occupied = np.count_nonzero(counts)
+    return float(counts.sum()) / occupied if occupied else 0.0
+
+
+def offset_buckets(cell_start, offsets, cell_frames, per_bucket: int = BUCKET_REFERENCES):
+    """Each cell's references cut into buckets of equal offset width (numpy, at upload).
+
+    Returns ``(scan_frames, cell_bucket, bucket_start)``: per cell its normal
+    (u, v), its lowest offset plus its largest offset spread, and its buckets
+    per offset unit (``scale``, float32 as the kernel reads them); the CSR start
+    of each cell's buckets (``max(1, references // per_bucket)`` of them); the
+    first reference of each bucket: bucket ``k`` of a cell holds the offsets in
+    ``[lowest + k/scale, lowest + (k+1)/scale)``, the last one everything above.
+    """
+    starts = cell_start.astype(np.int64)
+    counts = np.diff(starts)
+    buckets = np.maximum(1, counts // per_bucket)
+    cell_bucket = np.zeros(len(counts) + 1, np.int64)
+    np.cumsum(buckets, out=cell_bucket[1:])
+    occupied = counts > 0
+    lowest = np.zeros(len(counts), np.float32)
+    highest = np.zeros(len(counts), np.float32)
+    lowest[occupied] = offsets[starts[:-1][occupied]]
+    highest[occupied] = offsets[starts[1:][occupied] - 1]
+    span = highest.astype(np.float64) - lowest
+    # float32, as the kernel reads it; the kernel's rounding is covered by its offset padding
+    scale = np.where(span > 0, buckets / np.where(span > 0, span, 1.0), 0.0).astype(np.float32)
+    # the bucket of every reference (non-decreasing within a cell: offsets are sorted), in chunks
+    per_bucket_count = np.zeros(int(cell_bucket[-1]), np.int64)
+    for first in range(0, int(starts[-1]), 1 << 22):
+        last = min(first + (1 << 22), int(starts[-1]))
+        owner = np.searchsorted(starts, np.arange(first, last), side="right") - 1
+        k = np.floor((offsets[first:last].astype(np.float64) - lowest[owner]) * scale[owner])
+        k = np.clip(k, 0, buckets[owner] - 1).astype(np.int64)
+        per_bucket_count += np.bincount(cell_bucket[owner] + k, minlength=len(per_bucket_count))
+        del owner, k
+    bucket_start = np.zeros(len(per_bucket_count) + 1, np.int64)
+    np.cumsum(per_bucket_count, out=bucket_start[1:])
+    frames = empty_aligned((len(counts), 4), np.float32)
+    frames[:, 0:2] = cell_frames[:, 0:2]
+    # the scan's low end is (offset - spread), so its bucket is floor((offset - (lowest + spread)) * scale)
+    frames[:, 2] = lowest + cell_frames[:, 2]
+    frames[:, 3] = scale
+    return frames, aligned(cell_bucket[:-1].astype(np.uint32)), aligned(bucket_start.astype(np.uint32))
 
 
 def _owned(kind, array):
@@ -120,7 +195,7 @@ def _cell_range(grid: Grid, jac: LocalJacobian, radius, active):
     usable &= (u1 >= 0) & (v1 >= 0) & (u0 < grid.cells_u) & (v0 < grid.cells_v)
     u0, v0 = dr.maximum(u0, 0), dr.maximum(v0, 0)
     u1, v1 = dr.minimum(u1, grid.cells_u - 1), dr.minimum(v1, grid.cells_v - 1)
-    return u0, u1, v0, v1, gu, gv, scale, usable
+    return u0, u1, v0, v1, gu, gv, scale, extent_u, extent_v, usable
 
 
 def for_each_segment(grid: Grid, jac: LocalJacobian, radius, state: tuple,
@@ -132,16 +207,15 @@ def for_each_segment(grid: Grid, jac: LocalJacobian, radius, state: tuple,
     ``state`` is a tuple of Dr.Jit arrays; the final state is returned.
 
     Per visited cell, only the references whose offset along the cell's normal
-    can reach the window are tested: a binary search finds the first one at or
-    above ``q - R_n - spread`` (q: x0's offset, R_n: the window's half width
-    along the normal), the scan stops above ``q + R_n``.  Two nested loops keep
-    the SIMD lanes in step: the inner one only searches and scans (a few
+    can reach the window are tested (:func:`_cell_scan`): the scan starts at the
+    offset bucket of the lowest such offset and stops past the highest.  Two
+    nested loops keep the SIMD lanes in step: the inner one only scans (a few
     gathers and multiplications per step) until every lane has found its next
     piece or run out of cells, the outer one then calls ``body`` once for all
     of them.  The expensive body thus runs as often as the lane with the most
     pieces in its window needs, not once per reference tested.
     """
-    u0, u1, v0, v1, gu, gv, scale, usable = _cell_range(grid, jac, radius, active)
+    u0, u1, v0, v1, gu, gv, scale, extent_u, extent_v, usable = _cell_range(grid, jac, radius, active)
     radius2 = radius * radius
     zero_i = mi.Int32(0)
     u1, v1 = dr.select(usable, u1, zero_i), dr.select(usable, v1, zero_i)
@@ -151,21 +225,15 @@ def for_each_segment(grid: Grid, jac: LocalJacobian, radius, state: tuple,
     def more(u, v, index, end):
         return (index < end) | (u < u1) | (v < v1)
 
-    def scan_step(u, v, index, end, search_end, searching, lo_key, hi_key, found, piece, segment):
-        searching = searching & (index < search_end)
-        testing = ~searching & (index < end)
-        advance = ~searching & ~testing & ((u < u1) | (v < v1))
-        # ---- bisection (first reference with offset >= lo_key) and scan share one gather
-        middle = (index + search_end) >> 1
-        key = dr.gather(mi.Float, grid.offsets, dr.select(searching, middle, index), searching | testing)
-        right = searching & (key < lo_key)
-        search_end = dr.select(searching & ~right, middle, search_end)
-        index = dr.select(right, middle + 1, index)
+    def scan_step(u, v, index, end, hi_key, found, piece):
+        testing = index < end
+        advance = ~testing & ((u < u1) | (v < v1))
         # ---- scanning lanes test one reference; past hi_key the cell is done
+        key = dr.gather(mi.Float, grid.offsets, index, testing)
         testing &= key <= hi_key
-        index = dr.select(~searching & ~testing & ~advance & (index < end), end, index)
+        index = dr.select(~testing & ~advance & (index < end), end, index)
         piece = dr.gather(mi.UInt32, grid.references, index, testing)
-        segment, inside, closest_u, closest_v = _piece_geometry(grid, jac, piece, radius2, testing)
+        inside, closest_u, closest_v = _closest_point(grid, jac, piece, radius2, testing)
         owner_u = mi.Int32(dr.floor(dr.clip(gu + closest_u * grid.inverse_cell_size, 0.0,
                                              mi.Float(grid.cells_u - 1))))
         owner_v = mi.Int32(dr.floor(dr.clip(gv + closest_v * grid.inverse_cell_size, 0.0,
@@ -176,42 +244,63 @@ def for_each_segment(grid: Grid, jac: LocalJacobian, radius, state: tuple,
         new_row = u >= u1
         u = dr.select(advance, dr.select(new_row, u0, u + 1), u)
         v = dr.select(advance & new_row, v + 1, v)
-        cell = mi.UInt32(v * grid.cells_u + u)
-        first = dr.gather(mi.UInt32, grid.cell_start, cell, advance)
-        last = dr.gather(mi.UInt32, grid.cell_start, cell + 1, advance)
-        frame = dr.gather(mi.Vector4f, grid.cell_frames, cell, advance)
-        q = frame.x * (gu - mi.Float(u)) + frame.y * (gv - mi.Float(v))
-        half_width = scale * dr.sqrt(dr.square(jac.j11 * frame.x - jac.j10 * frame.y)
-                                     + dr.square(jac.j00 * frame.y - jac.j01 * frame.x)) + grid.margin
+        first, last, hi = _cell_scan(grid, jac, u, v, gu, gv, scale, extent_u, extent_v, advance)
         index = dr.select(advance, first, index)
         end = dr.select(advance, last, end)
-        search_end = dr.select(advance, last, search_end)
-        # bisect only where it saves steps: a short cell is scanned from its start
-        searching = searching | (advance & (last - first > BISECT_ABOVE))
-        lo_key = dr.select(advance, q - half_width - frame.z, lo_key)
-        hi_key = dr.select(advance, q + half_width, hi_key)
-        return u, v, index, end, search_end, searching, lo_key, hi_key, found, piece, tuple(segment)
+        hi_key = dr.select(advance, hi, hi_key)
+        return u, v, index, end, hi_key, found, piece
 
-    empty = tuple(dr.zeros(mi.Float) for _ in range(7)) + (dr.zeros(mi.Bool),)
-
-    def visit(u, v, index, end, search_end, searching, lo_key, hi_key, user):
-        u, v, index, end, search_end, searching, lo_key, hi_key, found, piece, segment = dr.while_loop(
-            (u, v, index, end, search_end, searching, lo_key, hi_key, dr.zeros(mi.Bool),
-             dr.zeros(mi.UInt32), empty),
-            lambda u, v, index, end, search_end, searching, lo_key, hi_key, found, piece, segment:
-                ~found & more(u, v, index, end),
+    def visit(u, v, index, end, hi_key, user):
+        u, v, index, end, hi_key, found, piece = dr.while_loop(
+            (u, v, index, end, hi_key, dr.zeros(mi.Bool), dr.zeros(mi.UInt32)),
+            lambda u, v, index, end, hi_key, found, piece: ~found & more(u, v, index, end),
             scan_step, label="scratch_scan")
-        segment = SegmentGeometry(*segment)
-        user = dr.if_stmt((segment, piece, user), found,
-                          lambda segment, piece, user: body(segment, piece, user),
-                          lambda segment, piece, user: user, label="scratch_segment")
-        return u, v, dr.select(found, index + 1, index), end, search_end, searching, lo_key, hi_key, user
+        user = dr.if_stmt((piece, user), found,
+                          lambda piece, user: body(segment_at(grid, jac, piece, True), piece, user),
+                          lambda piece, user: user, label="scratch_segment")
+        return u, v, dr.select(found, index + 1, index), end, hi_key, user
 
-    zero_u, zero_f = dr.zeros(mi.UInt32), dr.zeros(mi.Float)
-    return dr.while_loop((u_first, v_first, zero_u, zero_u, zero_u, dr.zeros(mi.Bool), zero_f, zero_f, state),
-                         lambda u, v, index, end, search_end, searching, lo_key, hi_key, user:
-                             more(u, v, index, end),
-                         visit, label="scratch_pieces")[8]
+    zero_u = dr.zeros(mi.UInt32)
+    return dr.while_loop((u_first, v_first, zero_u, zero_u, dr.zeros(mi.Float), state),
+                         lambda u, v, index, end, hi_key, user: more(u, v, index, end),
+                         visit, label="scratch_pieces")[5]
+
+
+def _cell_scan(grid: Grid, jac: LocalJacobian, u, v, gu, gv, scale, extent_u, extent_v, active):
+    """``(first, end, hi_key)``: the references of cell (u, v) that can hold a piece for the window.
+
+    A piece is handed over in the cell that holds its point closest to x0, a
+    point inside the window *and* the cell: its offset along the cell normal n
+    lies within the projection on n of the window (q ± R_n, R_n = R|J^{-T}n|)
+    and of the window's box clipped to the cell; its reference's offset, the
+    lowest of its in-cell part, lies at most the cell's offset spread below.
+    The scan starts at the offset bucket of the interval's low end and stops
+    past its high end (float32 rounding: ``grid.offset_padding``).
+    """
+    cell = mi.UInt32(v * grid.cells_u + u)
+    frame = dr.gather(mi.Vector4f, grid.scan_frames, cell, active)  # n_u, n_v, lowest + spread, buckets/offset
+    begin = dr.gather(mi.UInt32, grid.cell_start, cell, active)
+    end = dr.gather(mi.UInt32, grid.cell_start, cell + 1, active)
+    du, dv = gu - mi.Float(u), gv - mi.Float(v)  # x0 in the cell's coordinates (cells)
+    q = frame.x * du + frame.y * dv
+    half_width = scale * dr.sqrt(dr.square(jac.j11 * frame.x - jac.j10 * frame.y)
+                                 + dr.square(jac.j00 * frame.y - jac.j01 * frame.x))
+    pad = grid.offset_padding
+    if not grid.bucketed:
+        return begin, end, q + half_width + pad
+    # the window's box clipped to the cell (its extents already carry the margin)
+    box_u0, box_u1 = dr.maximum(du - extent_u, -pad), dr.minimum(du + extent_u, 1.0 + pad)
+    box_v0, box_v1 = dr.maximum(dv - extent_v, -pad), dr.minimum(dv + extent_v, 1.0 + pad)
+    positive_u, positive_v = frame.x >= 0.0, frame.y >= 0.0
+    box_lo = frame.x * dr.select(positive_u, box_u0, box_u1) + frame.y * dr.select(positive_v, box_v0, box_v1)
+    box_hi = frame.x * dr.select(positive_u, box_u1, box_u0) + frame.y * dr.select(positive_v, box_v1, box_v0)
+    lowest_pieces = dr.maximum(q - half_width, box_lo) - pad  # the scan's low end is this less the spread
+    hi_key = dr.minimum(q + half_width, box_hi) + pad
+    last_bucket = dr.maximum(mi.Int32(end - begin) // BUCKET_REFERENCES, 1) - 1
+    bucket0 = dr.gather(mi.UInt32, grid.cell_bucket, cell, active)
+    k = mi.Int32(dr.floor(dr.clip((lowest_pieces - frame.z) * frame.w, 0.0, mi.Float(last_bucket))))
+    first = dr.gather(mi.UInt32, grid.bucket_start, bucket0 + mi.UInt32(k), active)
+    return first, end, hi_key
 
 
 def for_each_crossing(grid: Grid, jac: LocalJacobian, piece, segment: SegmentGeometry, radius, state: tuple,
@@ -258,6 +347,25 @@ def for_each_crossing(grid: Grid, jac: LocalJacobian, piece, segment: SegmentGeo
 def segment_at(grid: Grid, jac: LocalJacobian, piece, active) -> SegmentGeometry:
     """Geometry of piece ``piece`` seen from the shading point."""
     return _piece_geometry(grid, jac, piece, 0.0, active)[0]
+
+
+def _closest_point(grid: Grid, jac: LocalJacobian, piece, radius2, active):
+    """Whether the piece passes within the window radius, and its point closest to x0 relative to x0 (UV).
+
+    The scan's test: :func:`_piece_geometry` without the segment's frame (no square root)."""
+    head = dr.gather(mi.Vector4f, grid.segments, 2 * piece, active)  # a_hi, a_lo
+    tail = dr.gather(mi.Vector4f, grid.segments, 2 * piece + 1, active)  # e (UV), W (µm), ±D (µm)
+    du = (head.x - jac.uv.x) + head.z
+    dv = (head.y - jac.uv.y) + head.w
+    ax = dr.fma(jac.j00, du, jac.j01 * dv)
+    ay = dr.fma(jac.j10, du, jac.j11 * dv)
+    ex = dr.fma(jac.j00, tail.x, jac.j01 * tail.y)
+    ey = dr.fma(jac.j10, tail.x, jac.j11 * tail.y)
+    length2 = dr.fma(ex, ex, ey * ey)
+    usable = active & (length2 > 1e-12)
+    t = dr.clip(-dr.fma(ax, ex, ay * ey) / dr.select(usable, length2, 1.0), 0.0, 1.0)  # closest point
+    distance2 = dr.square(dr.fma(t, ex, ax)) + dr.square(dr.fma(t, ey, ay))
+    return usable & (distance2 < radius2), dr.fma(t, tail.x, du), dr.fma(t, tail.y, dv)
 
 
 def _piece_geometry(grid: Grid, jac: LocalJacobian, piece, radius2, active):

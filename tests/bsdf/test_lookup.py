@@ -7,12 +7,15 @@ Pieces within 1e-4 of the radius may go either way (float32).
 """
 from __future__ import annotations
 
+import dataclasses
+
 import drjit as dr
 import mitsuba as mi
 import numpy as np
 import pytest
 
-from scratch_iridescence.mitsuba_bridge.bsdf.lookup import Grid, LocalJacobian, for_each_segment
+from scratch_iridescence.mitsuba_bridge.bsdf.lookup import (BUCKET_REFERENCES, Grid, LocalJacobian, for_each_segment,
+                                                              offset_buckets)
 from scratch_iridescence.mitsuba_bridge.bsdf.tables import build_tables
 from scratch_iridescence.mitsuba_bridge.scratch import Gaussian, Profile, ScratchSet, random_scratches
 
@@ -54,10 +57,12 @@ def brute_force_counts(tables, uv, jacobians, radius):
 
 @pytest.mark.parametrize("name", list(SETS))
 @pytest.mark.parametrize("window_cells", [0.3, 3.0])
-def test01_every_piece_in_the_window_is_visited_once(name, window_cells):
+@pytest.mark.parametrize("bucketed", [True, False], ids=["buckets", "cell-starts"])
+def test01_every_piece_in_the_window_is_visited_once(name, window_cells, bucketed):
+    """Both scans (from offset buckets, as dense sets; from each cell's start, as sparse ones) on every set."""
     scratches = SETS[name]()
     tables = build_tables(scratches)
-    grid = Grid.upload(tables)
+    grid = dataclasses.replace(Grid.upload(tables), bucketed=bucketed)
     rng = np.random.default_rng(7)
     n = 400
     # shading points near pieces (where the pieces are), rotated and sheared Jacobians
@@ -85,3 +90,30 @@ def test01_every_piece_in_the_window_is_visited_once(name, window_cells):
     sure, possible = brute_force_counts(tables, uv, jacobians, radius)
     assert possible.sum() > n  # the windows do hold pieces
     assert np.all(count >= sure) and np.all(count <= possible), (count - sure)[(count < sure) | (count > possible)]
+
+
+@pytest.mark.parametrize("name", list(SETS))
+def test02_offset_buckets_partition_each_cell_by_offset(name):
+    """Bucket k of a cell holds exactly its references with offsets in [lowest + k/scale, lowest + (k+1)/scale)."""
+    tables = build_tables(SETS[name]())
+    frames, cell_bucket, bucket_start = offset_buckets(tables.cell_start, tables.offsets, tables.cell_frames)
+    starts = tables.cell_start.astype(np.int64)
+    counts = np.diff(starts)
+    buckets = np.diff(np.append(cell_bucket.astype(np.int64), len(bucket_start) - 1))
+    assert np.all(buckets == np.maximum(1, counts // BUCKET_REFERENCES))
+    assert bucket_start[-1] == starts[-1] and np.all(np.diff(bucket_start.astype(np.int64)) >= 0)
+    assert np.array_equal(bucket_start[cell_bucket], tables.cell_start[:-1])  # each cell's first bucket
+    assert np.array_equal(frames[:, 0:2], tables.cell_frames[:, 0:2])
+    checked = 0
+    for cell in np.flatnonzero(counts > 2 * BUCKET_REFERENCES)[:200]:
+        lowest = np.float64(tables.offsets[starts[cell]])
+        assert frames[cell, 2] == np.float32(lowest + tables.cell_frames[cell, 2])  # lowest + spread
+        scale = np.float64(frames[cell, 3])
+        for k in range(buckets[cell]):
+            first, last = bucket_start[cell_bucket[cell] + k], bucket_start[cell_bucket[cell] + k + 1]
+            offsets = tables.offsets[first:last].astype(np.float64)
+            assert np.all(offsets >= lowest + k / scale - 1e-6)
+            if k + 1 < buckets[cell]:
+                assert np.all(offsets < lowest + (k + 1) / scale + 1e-6)
+            checked += len(offsets)
+    assert checked > 0
