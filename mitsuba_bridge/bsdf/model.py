@@ -83,8 +83,11 @@ class Model:
 
     # --------------------------------------------------------- evaluation
     def evaluate(self, si, wo, *, has_glossy=True, has_diffuse=True, want_value=True, want_pdf=True,
-                 active=True):
-        """``(f_r cos θ_o, pdf)`` (either may be ``None`` when not wanted)."""
+                 active=True, pieces_in_window=True):
+        """``(f_r cos θ_o, pdf)`` (either may be ``None`` when not wanted).
+
+        ``pieces_in_window`` (mask): False where the caller knows that no piece lies in the window
+        (:meth:`sample` has just looked): the search for them is then skipped."""
         wi = si.wi
         active = mi.Bool(active) & (wi.z > 0.0) & (wo.z > 0.0)
         wavelength, jac = self._hero(si)
@@ -143,7 +146,7 @@ class Model:
         # (the excess sums join the loop state only when they are used: no cost for the other phases)
         (a, b), energy, density, excess = for_each_segment(
             self.grid, jac, WINDOW_RADIUS_SIGMAS * sigma, (field, zero_f, zero_f, (zero_s, zero_s) if bounded else ()),
-            body, active & has_glossy)
+            body, active & has_glossy & pieces_in_window)
 
         value = pdf = None
         if want_value:
@@ -222,18 +225,19 @@ class Model:
 
         # ---- one pass: total scratch energy and a segment drawn in proportion (reservoir)
         def body(segment, piece, state):
-            energy, chosen, u = state
+            energy, chosen, u, found = state
             weight = sampling.selection_weight(segment, kz0 * segment.depth, sigma, self.coherent)
             energy = energy + weight
             p = dr.select(energy > 0.0, weight / energy, 0.0)
             pick = u < p
             chosen = dr.select(pick, piece, chosen)
             u = dr.select(pick, u / dr.maximum(p, 1e-30), (u - p) / dr.maximum(1.0 - p, 1e-30))
-            return energy, chosen, dr.clip(u, 0.0, 0.99999994)
+            return energy, chosen, dr.clip(u, 0.0, 0.99999994), mi.Bool(True)
 
-        energy, chosen, u = for_each_segment(
+        energy, chosen, u, found = for_each_segment(
             self.grid, jac, WINDOW_RADIUS_SIGMAS * sigma,
-            (dr.zeros(mi.Float), dr.zeros(mi.UInt32), mi.Float(sample1)), body, active & has_glossy)
+            (dr.zeros(mi.Float), dr.zeros(mi.UInt32), mi.Float(sample1), dr.zeros(mi.Bool)), body,
+            active & has_glossy)
 
         # ---- strategy from the left-over uniform (independent of the segment drawn)
         q_d, q_s, q_m = self._strategy_weights(si, energy, wi.z, has_glossy, has_diffuse, active)
@@ -261,7 +265,9 @@ class Model:
         wo = dr.select(diffuse, mi.warp.square_to_cosine_hemisphere(sample2), specular)
         active &= diffuse | (sin2 < 1.0)
 
-        value, pdf = self.evaluate(si, wo, has_glossy=has_glossy, has_diffuse=has_diffuse, active=active)
+        # the same window as above: where it held no piece, the evaluation need not search again
+        value, pdf = self.evaluate(si, wo, has_glossy=has_glossy, has_diffuse=has_diffuse, active=active,
+                                   pieces_in_window=found)
         return wo, pdf, value, diffuse
 
 

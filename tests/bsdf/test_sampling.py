@@ -99,3 +99,28 @@ def test03_estimated_albedo_of_a_flat_mirror_is_one():
         w = np.asarray(weight)
         assert w[0].mean() == pytest.approx(1.0, abs=0.01)  # hero wavelength: weight exactly 1
         assert np.all(np.abs(w.mean(axis=1) - 1.0) < 0.05)  # other wavelengths: f(λ_j)/p(λ_0), unbiased
+
+
+def test04_sample_skips_the_second_search_only_where_the_window_is_empty():
+    """``sample`` evaluates its direction without searching again where its first pass found no piece:
+    with shading points of which about half see pieces, its weight and pdf still equal eval / pdf."""
+    scratches = [ref.Scratch((-20, 0.4), (20, 0.4), 1.0, 0.3), ref.Scratch((0.3, -20), (0.6, 20), 0.8, 0.25, ref.TRI)]
+    bsdf = shading.load_bsdf(scratches, sigma_um=0.5)
+    mirror = shading.load_bsdf(None, sigma_um=0.5)
+    ctx = mi.BSDFContext()
+    count = 20000
+    rng = np.random.default_rng(4)
+    # x0 up to 8 µm away from the crossing: the window (radius 4σ = 2 µm) holds 0, 1 or 2 pieces
+    uv = shading.to_uv(rng.uniform(-8.0, 8.0, (count, 2)))
+    si = shading.interaction(count, shading.direction(35.0, 25.0), WAVELENGTHS, uv=(uv[:, 0], uv[:, 1]))
+    u = shading.floats(rng.random(count))
+    u2 = mi.Point2f(shading.floats(rng.random(count)), shading.floats(rng.random(count)))
+    bs, weight = bsdf.sample(ctx, si, u, u2)
+    value, pdf = bsdf.eval_pdf(ctx, si, bs.wo)
+    bare = np.asarray(mirror.eval(ctx, si, bs.wo), dtype=np.float64)
+    weight, value, pdf, bs_pdf = (np.asarray(x, dtype=np.float64) for x in (weight, value, pdf, bs.pdf))
+    valid = bs_pdf > 0
+    scratched = np.any(value != bare, axis=0)
+    assert 0.2 < scratched.mean() < 0.8  # both kinds of lanes
+    np.testing.assert_allclose(bs_pdf[valid], pdf[valid], rtol=1e-4)
+    np.testing.assert_allclose(weight[:, valid], value[:, valid] / pdf[valid], rtol=1e-4, atol=1e-7)
