@@ -246,7 +246,7 @@ def _benchmarks(figures, records: dict) -> str:
         if r["paper_per_core_s"]:
             paper = f"{r['paper_minutes']:g} min" + ("" if r["paper_mp"] == 4.0 else f" ({r['paper_mp']:g} MP)")
             ratio = r["per_core_s"] / r["paper_per_core_s"]
-            versus = f"{r['paper_per_core_s']:.3g} | {ratio:.2g}× | {ratio / 4:.2g}×"
+            versus = f"{r['paper_per_core_s']:.3g} | {ratio:.2g}× | {ratio / 4:.2f}×"
         else:
             paper, versus = "—", "— | — | —"
         lines.append(

@@ -13,7 +13,8 @@ Dense sets (issue 12): ``--dense`` adds the time per query on the paper's CD
 ``bench_bsdf_memory.py``) and on the Fig. 9 grating (1 600 grooves of 7 cm at a
 2.5 µm pitch), at shading points spread over the tracks/bands in every
 orientation, as wall time per lane (all cores) and as a ratio to
-``roughconductor.eval`` measured in the same run (the machine is shared).
+``roughconductor.eval`` measured in the same run (the machine is shared), and the time of the search
+alone (the fold over the pieces in the window with a body that only counts them).
 
 Crossings (issue 12 item 1): ``--crossings`` times ``eval`` with ``crossings =
 "additive"`` and ``"height_field"`` on the Fig. 7(b) plate (3 000 scratches,
@@ -156,6 +157,8 @@ def dense_sets(args, rng):
     import mitsuba as mi
 
     from scratch_iridescence.mitsuba_bridge import bsdf as scratch_bsdf
+    from scratch_iridescence.mitsuba_bridge.bsdf.lookup import for_each_segment, jacobian
+    from scratch_iridescence.mitsuba_bridge.bsdf.model import WINDOW_RADIUS_SIGMAS
     from scratch_iridescence.mitsuba_bridge.scratch import ScratchSet
 
     sys.path.insert(0, str(Path(__file__).parent))
@@ -176,19 +179,30 @@ def dense_sets(args, rng):
     rough = mi.load_dict({"type": "roughconductor", "material": "Al", "alpha": 0.1})
 
     def time_eval(bsdf, si):
-        """Best time per lane of ``bsdf.eval`` and of ``roughconductor.eval``, measured alternately."""
+        """Best time per lane of ``bsdf.eval``, of ``roughconductor.eval`` and of the search alone
+        (the fold over the pieces in the window with a body that only counts them), measured alternately."""
         wo = mi.warp.square_to_cosine_hemisphere(mi.Point2f(mi.Float(rng.random(n)), mi.Float(rng.random(n))))
         dr.eval(si, wo)
         ctx = mi.BSDFContext()
-        best = [float("inf"), float("inf")]
+        model = bsdf.model
+        radius = WINDOW_RADIUS_SIGMAS * model.sigma
+
+        def search():
+            return for_each_segment(model.grid, jacobian(si, model.micrometres_per_unit), radius,
+                                    (dr.zeros(mi.UInt32, n),), lambda segment, piece, state: (state[0] + 1,),
+                                    mi.Bool(True))[0]
+
+        calls = (lambda: bsdf.eval(ctx, si, wo), lambda: rough.eval(ctx, si, wo), search)
+        best = [float("inf")] * len(calls)
         for i in range(args.repeat + 1):
-            for k, b in enumerate((bsdf, rough)):
+            for k, call in enumerate(calls):
                 start = time.perf_counter()
-                dr.eval(b.eval(ctx, si, wo))
+                dr.eval(call())
                 dr.sync_thread()
                 if i:
                     best[k] = min(best[k], time.perf_counter() - start)
-        return best[0] / n, best[1] / n
+        pieces = float(np.mean(np.asarray(search())))
+        return best[0] / n, best[1] / n, best[2] / n, pieces
 
     # the CD: points on the program area, every track orientation
     radius = rng.uniform(23e-3, 57e-3, n) / DISC_M
@@ -196,7 +210,7 @@ def dense_sets(args, rng):
     start = time.perf_counter()
     cd = mi.load_dict(scratch_bsdf.plugin_dict(cd_scratches(), unit_scale=DISC_M))
     print(f"\nCD: {cd} (load {time.perf_counter() - start:.1f} s)")
-    cd_query, cd_rough = time_eval(cd, interaction(0.5 + radius * np.cos(angle), 0.5 + radius * np.sin(angle)))
+    cd_times = time_eval(cd, interaction(0.5 + radius * np.cos(angle), 0.5 + radius * np.sin(angle)))
     del cd
 
     # the Fig. 9 grating: four bands of 400 grooves, pitch 2.5 µm, 7 cm long, on a 10 cm plate (UV = plate)
@@ -209,13 +223,13 @@ def dense_sets(args, rng):
     print(f"grating: {grating}")
     band = rng.integers(0, 4, n)
     v = 0.4 + (bands[band] + rng.uniform(0, 400 * pitch_m, n)) / plate_m
-    grating_query, grating_rough = time_eval(grating, interaction(rng.uniform(0.2, 0.8, n), v))
+    grating_times = time_eval(grating, interaction(rng.uniform(0.2, 0.8, n), v))
 
     print(f"time per eval query (wall per lane, {os.cpu_count()} cores, {n} lanes, best of {args.repeat}; "
           "roughconductor.eval on the same lanes, measured alternately):")
-    for name, query, reference in (("CD", cd_query, cd_rough), ("grating", grating_query, grating_rough)):
+    for name, (query, reference, search, pieces) in (("CD", cd_times), ("grating", grating_times)):
         print(f"  {name:8s} {query * 1e9:8.0f} ns  = {query / reference:6.1f} x roughconductor.eval "
-              f"({reference * 1e9:.1f} ns)")
+              f"({reference * 1e9:.1f} ns); the search alone {search * 1e9:.0f} ns for {pieces:.1f} pieces")
 
 
 def crossing_sets(args, rng):
