@@ -68,8 +68,15 @@ class Grid:
 
     @classmethod
     def upload(cls, tables: GridTables) -> "Grid":
-        scan_frames, cell_bucket, bucket_start = offset_buckets(tables.cell_start, tables.offsets,
-                                                                tables.cell_frames)
+        bucketed = references_per_occupied_cell(tables.cell_start) > BUCKETED_ABOVE
+        if bucketed:
+            scan_frames, cell_bucket, bucket_start = offset_buckets(tables.cell_start, tables.offsets,
+                                                                    tables.cell_frames)
+        else:  # the sparse scan reads the normals only (the build would cost ~7 % of the tables' own)
+            scan_frames = empty_aligned((len(tables.cell_frames), 4), np.float32)
+            scan_frames[:, 0:2] = tables.cell_frames[:, 0:2]
+            scan_frames[:, 2:4] = 0.0
+            cell_bucket = bucket_start = aligned(np.zeros(2, np.uint32))
         rounding = max(tables.margin - CELL_DILATION, 0.0)
         return cls(
             segments=_owned(mi.Float, tables.segments.ravel()),
@@ -90,7 +97,7 @@ class Grid:
             crossing_partner=_owned(mi.UInt32, tables.crossing_partner),
             crossing_along=_owned(mi.Float, tables.crossing_along),
             max_width=dr.opaque(mi.Float, float(tables.segments[:tables.piece_count, 6].max(initial=0.0))),
-            bucketed=references_per_occupied_cell(tables.cell_start) > BUCKETED_ABOVE)
+            bucketed=bucketed)
 
 
 def references_per_occupied_cell(cell_start) -> float:
