@@ -352,22 +352,21 @@ def for_each_crossing(grid: Grid, jac: LocalJacobian, piece, segment: SegmentGeo
 
 
 def segment_at(grid: Grid, jac: LocalJacobian, piece, active) -> SegmentGeometry:
-    """Geometry of piece ``piece`` seen from the shading point."""
-    return _piece_geometry(grid, jac, piece, 0.0, active)[0]
+    """Geometry of piece ``piece`` seen from the shading point (local frame, µm)."""
+    tail, _, _, ax, ay, ex, ey = _piece_from_x0(grid, jac, piece, active)
+    length = dr.sqrt(dr.fma(ex, ex, ey * ey))
+    inv_length = dr.rcp(dr.select(active & (length > 1e-6), length, 1.0))
+    dx, dy = ex * inv_length, ey * inv_length
+    return SegmentGeometry(c=dr.fma(ax, dx, ay * dy), length=length, a_perp=dr.fma(ay, dx, -ax * dy), dx=dx, dy=dy,
+                           width=tail.z, depth=dr.abs(tail.w), triangular=tail.w < 0.0)
 
 
 def _closest_point(grid: Grid, jac: LocalJacobian, piece, radius2, active):
     """Whether the piece passes within the window radius, and its point closest to x0 relative to x0 (UV).
 
-    The scan's test: :func:`_piece_geometry` without the segment's frame (no square root)."""
-    head = dr.gather(mi.Vector4f, grid.segments, 2 * piece, active)  # a_hi, a_lo
-    tail = dr.gather(mi.Vector4f, grid.segments, 2 * piece + 1, active)  # e (UV), W (µm), ±D (µm)
-    du = (head.x - jac.uv.x) + head.z
-    dv = (head.y - jac.uv.y) + head.w
-    ax = dr.fma(jac.j00, du, jac.j01 * dv)
-    ay = dr.fma(jac.j10, du, jac.j11 * dv)
-    ex = dr.fma(jac.j00, tail.x, jac.j01 * tail.y)
-    ey = dr.fma(jac.j10, tail.x, jac.j11 * tail.y)
+    The scan's test, without the segment's frame (no square root): the body gets that from
+    :func:`segment_at` for the pieces found."""
+    tail, du, dv, ax, ay, ex, ey = _piece_from_x0(grid, jac, piece, active)
     length2 = dr.fma(ex, ex, ey * ey)
     usable = active & (length2 > 1e-12)
     t = dr.clip(-dr.fma(ax, ex, ay * ey) / dr.select(usable, length2, 1.0), 0.0, 1.0)  # closest point
@@ -375,28 +374,12 @@ def _closest_point(grid: Grid, jac: LocalJacobian, piece, radius2, active):
     return usable & (distance2 < radius2), dr.fma(t, tail.x, du), dr.fma(t, tail.y, dv)
 
 
-def _piece_geometry(grid: Grid, jac: LocalJacobian, piece, radius2, active):
-    """The piece seen from x0 (local frame, µm), whether it passes within the window radius,
-    and its point closest to x0 relative to x0 (UV)."""
+def _piece_from_x0(grid: Grid, jac: LocalJacobian, piece, active):
+    """``(tail, du, dv, ax, ay, ex, ey)``: the piece's row tail (e (UV), W, ±D), its start a - x0 in UV
+    and in the local frame (µm), and e = b - a in the local frame."""
     head = dr.gather(mi.Vector4f, grid.segments, 2 * piece, active)  # a_hi, a_lo
     tail = dr.gather(mi.Vector4f, grid.segments, 2 * piece + 1, active)  # e (UV), W (µm), ±D (µm)
     du = (head.x - jac.uv.x) + head.z
     dv = (head.y - jac.uv.y) + head.w
-    ax = dr.fma(jac.j00, du, jac.j01 * dv)
-    ay = dr.fma(jac.j10, du, jac.j11 * dv)
-    ex = dr.fma(jac.j00, tail.x, jac.j01 * tail.y)
-    ey = dr.fma(jac.j10, tail.x, jac.j11 * tail.y)
-    length = dr.sqrt(dr.fma(ex, ex, ey * ey))
-    usable = active & (length > 1e-6)
-    inv_length = dr.rcp(dr.select(usable, length, 1.0))
-    dx, dy = ex * inv_length, ey * inv_length
-    c = dr.fma(ax, dx, ay * dy)
-    a_perp = dr.fma(ay, dx, -ax * dy)
-    along = dr.clip(-c, 0.0, length)  # closest point of the piece to x0
-    distance2 = dr.fma(a_perp, a_perp, dr.square(c + along))
-    segment = SegmentGeometry(c=c, length=length, a_perp=a_perp, dx=dx, dy=dy,
-                              width=tail.z, depth=dr.abs(tail.w), triangular=tail.w < 0.0)
-    t = along * inv_length  # the closest point's parameter: the same in UV as in the local frame
-    closest_u = dr.fma(t, tail.x, du)
-    closest_v = dr.fma(t, tail.y, dv)
-    return segment, usable & (distance2 < radius2), closest_u, closest_v
+    return (tail, du, dv, dr.fma(jac.j00, du, jac.j01 * dv), dr.fma(jac.j10, du, jac.j11 * dv),
+            dr.fma(jac.j00, tail.x, jac.j01 * tail.y), dr.fma(jac.j10, tail.x, jac.j11 * tail.y))
