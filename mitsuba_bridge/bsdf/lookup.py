@@ -285,7 +285,10 @@ def _cell_scan(grid: Grid, jac: LocalJacobian, u, v, gu, gv, scale, extent_u, ex
     past its high end (float32 rounding: ``grid.offset_padding``).
     """
     cell = mi.UInt32(v * grid.cells_u + u)
-    frame = dr.gather(mi.Vector4f, grid.scan_frames, cell, active)  # n_u, n_v, lowest + spread, buckets/offset
+    if grid.bucketed:
+        frame = dr.gather(mi.Vector4f, grid.scan_frames, cell, active)  # n_u, n_v, lowest + spread, buckets/offset
+    else:  # the sparse scan reads the normal only
+        frame = dr.gather(mi.Vector2f, grid.scan_frames, 2 * cell, active)
     begin = dr.gather(mi.UInt32, grid.cell_start, cell, active)
     end = dr.gather(mi.UInt32, grid.cell_start, cell + 1, active)
     du, dv = gu - mi.Float(u), gv - mi.Float(v)  # x0 in the cell's coordinates (cells)
