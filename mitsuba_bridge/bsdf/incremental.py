@@ -27,7 +27,8 @@ import numpy as np
 
 from ..scratch import ScratchSet
 from .references import CHUNK, cell_references, doubled_angles, empty_aligned, normals, offsets_in_cell
-from .tables import GridTables, _cells, _no_crossings, _pieces, _reference_limit, _segment_rows, build_sorted
+from .tables import (GridTables, _cells, _no_crossings, _pieces, _reference_limit, _segment_rows, build_sorted,
+                     continuations)
 
 __all__ = ["TableCache", "update_tables", "MAX_CACHED_PIECES"]
 
@@ -188,7 +189,8 @@ def _extend(previous: TableCache, scratches: ScratchSet) -> TableCache | None:
     tables = GridTables(segments=segments, references=references, offsets=offsets, cell_frames=frames,
                         cell_start=cell_start, origin=old.origin, cell_size=h, shape=old.shape,
                         piece_count=n_old + n_new, margin=margin, crossing_start=crossing_start,
-                        crossing_partner=crossing_partner, crossing_along=crossing_along)
+                        crossing_partner=crossing_partner, crossing_along=crossing_along,
+                        continuation=continuations(a, b, segments))
     if len(a) > MAX_CACHED_PIECES:
         a = b = None
     return TableCache(scratches, tables, a, b, previous.cell_size_hint, True)

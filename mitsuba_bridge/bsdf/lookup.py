@@ -24,6 +24,7 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
+from .periodic import periodic_families
 from .segment import SegmentGeometry
 from .tables import CELL_DILATION, GridTables, aligned, empty_aligned
 
@@ -66,6 +67,15 @@ class Grid:
     #: scan from the offset bucket of the window (dense cells) or from each cell's start (sparse sets, whose
     #: cells hold a bucket or two: the bucket arithmetic would only slow every step down)
     bucketed: bool = True
+    #: mi.Float, per cell SLOTS × 3 Vector4f: the periodic families of :mod:`.periodic` (None: the set has none)
+    family_frames: object = None
+    family_pieces: object = None  #: mi.UInt32, per cell SLOTS: one piece of each family
+    cell_size: object = None  #: opaque mi.Float: the cell's side in UV units
+
+    @property
+    def periodic(self) -> bool:
+        """Whether some cell holds a periodic family (a Python choice: the closed form is compiled only then)."""
+        return self.family_frames is not None
 
     @classmethod
     def upload(cls, tables: GridTables) -> "Grid":
@@ -77,6 +87,9 @@ class Grid:
             scan_frames = tables.cell_frames  # (no buckets: their build costs ~7 % of the tables' own)
             cell_bucket = bucket_start = aligned(np.zeros(2, np.uint32))
         rounding = max(tables.margin - CELL_DILATION, 0.0)
+        families = periodic_families(tables.cell_start, tables.references, tables.segments, tables.cell_frames,
+                                     tables.origin, tables.cell_size, tables.shape,
+                                     tables.continuation) if bucketed else None
         return cls(
             segments=_owned(mi.Float, tables.segments.ravel()),
             references=_owned(mi.UInt32, tables.references),
@@ -96,7 +109,10 @@ class Grid:
             crossing_partner=_owned(mi.UInt32, tables.crossing_partner),
             crossing_along=_owned(mi.Float, tables.crossing_along),
             max_width=dr.opaque(mi.Float, float(tables.segments[:tables.piece_count, 6].max(initial=0.0))),
-            bucketed=bucketed)
+            bucketed=bucketed,
+            family_frames=None if families is None else _owned(mi.Float, families.frames.ravel()),
+            family_pieces=None if families is None else _owned(mi.UInt32, families.pieces.ravel()),
+            cell_size=dr.opaque(mi.Float, tables.cell_size))
 
 
 def references_per_occupied_cell(cell_start) -> float:

@@ -22,7 +22,8 @@ from .energy import albedo_excess
 from .fresnel import fresnel_conductor
 from .lookup import Grid, for_each_crossing, for_each_segment, jacobian, segment_at
 from .overlap import crossing_correction
-from .segment import amplitude, frequencies
+from .periodic import family_energy, family_field, find_family
+from .segment import SegmentGeometry, amplitude, frequencies
 from .triples import add_triples
 from .window import mirror_lobe
 
@@ -54,6 +55,9 @@ class Model:
     triples: bool = True
     #: with height_field: scale the field back to |U| <= 2πσ² (docs/model.md §3.4); off only to test the terms
     clamp_to_height_field_bound: bool = True
+    #: sum periodic families (a CD's tracks, a grating) in closed form where a window lies in one
+    #: (docs/model.md §3.5); off only to compare with the scan
+    periodic: bool = True
 
     # ------------------------------------------------------------- pieces
     def _reflectance(self, si, cos_theta, active):
@@ -80,6 +84,28 @@ class Model:
         else:
             q_d = zero
         return q_d, (1.0 - q_d) * share, (1.0 - q_d) * (1.0 - share)
+
+    def _family(self, jac, active):
+        """The periodic family of each lane's window (:mod:`.periodic`), or None where the set has none.
+
+        Coherent mode only (the incoherent sum of intensities has no such closed form), and not
+        with the "bounded" depth phase (its albedo terms are summed piece by piece)."""
+        if not (self.periodic and self.grid.periodic and self.coherent and self.depth_phase != "bounded"):
+            return None
+        return find_family(self.grid, jac, self.sigma, active)
+
+    def _family_weight(self, family, kz0):
+        """Its tracks' summed selection weight (hero wavelength); 0 where the lane has no family."""
+        kappa = kz0 * family.depth
+        weight = family_energy(family, kappa, self.sigma) * sampling.groove_energy(family.triangular, kappa, True)
+        return dr.select(family.eligible, weight, 0.0)
+
+    @staticmethod
+    def _family_line(family):
+        """Its tracks as the sampler sees a segment (direction, width, depth, profile)."""
+        zero = dr.zeros(mi.Float)
+        return SegmentGeometry(c=zero, length=zero, a_perp=family.a0, dx=family.dx, dy=family.dy,
+                               width=family.width, depth=family.depth, triangular=family.triangular)
 
     # --------------------------------------------------------- evaluation
     def evaluate(self, si, wo, *, has_glossy=True, has_diffuse=True, want_value=True, want_pdf=True,
@@ -111,6 +137,19 @@ class Model:
 
         zero_s, zero_f = dr.zeros(mi.Spectrum), dr.zeros(mi.Float)
         field = (lobe, zero_s) if coherent else (zero_s, zero_f)
+        energy0 = density0 = zero_f
+        scanning = active & has_glossy & pieces_in_window
+        family = self._family(jac, active & has_glossy) if has_glossy else None
+        if family is not None:  # lanes inside a periodic family: its closed form, no search
+            inside = family.eligible
+            scanning &= ~inside
+            if want_value:
+                s = family_field(family, xi_x, xi_y, k_z, sigma)
+                field = (spectrum(lobe + dr.select(inside, s.re, 0.0)), spectrum(dr.select(inside, s.im, 0.0)))
+            if want_pdf:
+                energy0 = self._family_weight(family, kz0)
+                density0 = energy0 * self._scratch_density(self._family_line(family), xi0_x, xi0_y, wi, lam0, kz0)
+                density0 = dr.select(inside, density0, 0.0)
         # "bounded": Σ_k e_k(ω_i), Σ_k e_k(ω_o), the albedo estimate's segment terms (docs/model.md §4.1)
         bounded = self.depth_phase == "bounded" and coherent and want_value and has_glossy
 
@@ -145,8 +184,8 @@ class Model:
 
         # (the excess sums join the loop state only when they are used: no cost for the other phases)
         (a, b), energy, density, excess = for_each_segment(
-            self.grid, jac, WINDOW_RADIUS_SIGMAS * sigma, (field, zero_f, zero_f, (zero_s, zero_s) if bounded else ()),
-            body, active & has_glossy & pieces_in_window)
+            self.grid, jac, WINDOW_RADIUS_SIGMAS * sigma, (field, energy0, density0, (zero_s, zero_s) if bounded else ()),
+            body, scanning)
 
         value = pdf = None
         if want_value:
@@ -234,10 +273,15 @@ class Model:
             u = dr.select(pick, u / dr.maximum(p, 1e-30), (u - p) / dr.maximum(1.0 - p, 1e-30))
             return energy, chosen, dr.clip(u, 0.0, 0.99999994), mi.Bool(True)
 
+        energy0, chosen0, scanning = dr.zeros(mi.Float), dr.zeros(mi.UInt32), active & has_glossy
+        family = self._family(jac, active & has_glossy) if has_glossy else None
+        if family is not None:  # a periodic family: its tracks' weight, and one of them (all sample alike)
+            energy0 = self._family_weight(family, kz0)
+            chosen0 = dr.select(family.eligible, family.piece, chosen0)
+            scanning &= ~family.eligible
         energy, chosen, u, found = for_each_segment(
             self.grid, jac, WINDOW_RADIUS_SIGMAS * sigma,
-            (dr.zeros(mi.Float), dr.zeros(mi.UInt32), mi.Float(sample1), dr.zeros(mi.Bool)), body,
-            active & has_glossy)
+            (energy0, chosen0, mi.Float(sample1), dr.zeros(mi.Bool)), body, scanning)
 
         # ---- strategy from the left-over uniform (independent of the segment drawn)
         q_d, q_s, q_m = self._strategy_weights(si, energy, wi.z, has_glossy, has_diffuse, active)
@@ -245,7 +289,10 @@ class Model:
         scratch = active & ~diffuse & (u < q_d + q_s)
 
         # ---- scratch line of the chosen segment
-        segment = segment_at(self.grid, jac, chosen, scratch)
+        segment = segment_at(self.grid, jac, chosen, scratch & ~family.eligible if family is not None else scratch)
+        if family is not None:  # exactly the line the density of evaluate() assumes
+            segment = SegmentGeometry(*(dr.select(family.eligible, mine, theirs)
+                                        for mine, theirs in zip(self._family_line(family), segment)))
         lo, hi = self._band(segment, wi, lam0)
         nu_par = sampling.sample_along(sample2.x, sigma)
         nu_perp = sampling.sample_across(sample2.y, segment, kz0 * segment.depth, lo, hi)

@@ -13,7 +13,7 @@ from . import profiles
 from .segment import SegmentGeometry
 
 __all__ = [
-    "lobe_std", "sample_mirror", "pdf_mirror", "window_energy", "selection_weight",
+    "lobe_std", "sample_mirror", "pdf_mirror", "window_energy", "selection_weight", "groove_energy",
     "sample_along", "pdf_along", "sample_across", "pdf_across", "ALONG_CAUCHY_WEIGHT",
 ]
 
@@ -60,13 +60,15 @@ def window_energy(segment: SegmentGeometry, sigma):
 
 def selection_weight(segment: SegmentGeometry, kappa, sigma, coherent: bool):
     """Energy the segment diffracts at depth phase ``kappa`` (hero wavelength, γ_o = γ_i)."""
-    if coherent:
-        energy = dr.select(segment.triangular, profiles.energy_triangular(kappa),
-                           profiles.energy_rectangular(kappa))
-        energy = energy + ENERGY_FLOOR * dr.minimum(kappa * kappa, 1.0)
-    else:
-        energy = 1.0
-    return window_energy(segment, sigma) * energy
+    return window_energy(segment, sigma) * groove_energy(segment.triangular, kappa, coherent)
+
+
+def groove_energy(triangular, kappa, coherent: bool):
+    """The selection weight per unit of :func:`window_energy`: the profile's diffracted energy, floored."""
+    if not coherent:
+        return 1.0
+    energy = dr.select(triangular, profiles.energy_triangular(kappa), profiles.energy_rectangular(kappa))
+    return energy + ENERGY_FLOOR * dr.minimum(kappa * kappa, 1.0)
 
 
 # ------------------------------------------------------ along the segment

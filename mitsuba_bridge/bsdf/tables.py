@@ -102,6 +102,9 @@ class GridTables:
     crossing_start: np.ndarray = None
     crossing_partner: np.ndarray = None  #: uint32 partner pieces, padded to at least two entries
     crossing_along: np.ndarray = None  #: float32 parameter of each crossing along its lower piece
+    #: (N, 2) float32: length (UV) of the piece of the same groove that continues each piece straight on
+    #: before its start and after its end (0: the groove ends or turns there); None: not known
+    continuation: np.ndarray = None
 
     @property
     def crossing_count(self) -> int:
@@ -163,7 +166,49 @@ def build_sorted(scratches: ScratchSet, cell_size: float = 0.0, crossings: bool 
                       origin=(float(origin[0]), float(origin[1])), cell_size=float(h),
                       shape=(int(shape[0]), int(shape[1])), piece_count=len(segments), margin=margin,
                       crossing_start=crossing_start, crossing_partner=crossing_partner,
-                      crossing_along=crossing_along), a, b
+                      crossing_along=crossing_along, continuation=continuations(a, b, segments)), a, b
+
+
+#: Largest |sin| between a piece and the one continuing it straight on (the split of a long piece: exact).
+STRAIGHT_ON_SIN = 1e-6
+
+
+def continuations(a, b, segments) -> np.ndarray:
+    """``(N, 2)`` float32: per piece, the length (UV) of a piece of the same groove (width, depth) that
+    starts exactly where it ends, straight on, and of one that ends where it starts (else 0).
+
+    Long pieces are split (``MAX_PIECE_UV``) and polylines may run straight on: a periodic family
+    (:mod:`.periodic`) then knows that a track listed in a cell by one piece goes on past that piece's
+    end.  Ends meet in float64 to the last bit or so; they are matched on a 2⁻³¹-of-the-extent lattice."""
+    count = len(a)
+    result = np.zeros((count, 2), np.float32)
+    if count < 2:
+        return result
+    lo = np.minimum(a.min(axis=0), b.min(axis=0))
+    extent = float(np.max(np.maximum(a.max(axis=0), b.max(axis=0)) - lo))
+    step = max(extent, 1e-30) / float(1 << 30)
+
+    def keys(points):
+        q = np.floor((points - lo) / step).astype(np.int64)
+        return (q[:, 0] << 31) | q[:, 1]
+
+    start_keys = keys(a)
+    order = np.argsort(start_keys, kind="stable")
+    sorted_keys = start_keys[order]
+    end_keys = keys(b)
+    at = np.minimum(np.searchsorted(sorted_keys, end_keys), count - 1)
+    follower = order[at]
+    found = sorted_keys[at] == end_keys
+    e = b - a
+    length = np.hypot(e[:, 0], e[:, 1])
+    unit = e / np.where(length > 0, length, 1.0)[:, None]
+    straight = (np.abs(unit[:, 0] * unit[follower, 1] - unit[:, 1] * unit[follower, 0]) < STRAIGHT_ON_SIN) & (
+        np.einsum("ij,ij->i", unit, unit[follower]) > 0)
+    same = (segments[:, 6] == segments[follower, 6]) & (segments[:, 7] == segments[follower, 7])
+    joined = np.flatnonzero(found & straight & same & (follower != np.arange(count)))
+    result[joined, 1] = length[follower[joined]]
+    result[follower[joined], 0] = length[joined]
+    return result
 
 
 def _no_crossings(piece_count):

@@ -1,0 +1,445 @@
+"""Periodic families: runs of identical, parallel, equally spaced scratches summed in closed form.
+
+A CD's tracks and a ruled grating are, inside a coherence window, one
+infinite periodic set of straight grooves.  Their sum over the tracks is a
+Fourier series (Poisson summation, docs/model.md §3.5): with the window's
+along factor ``σ√(2π) e^{-2π²σ²ν∥²}`` common to all of them,
+
+    Σ_n S_n(ξ) = σ√(2π) e^{-2π²σ²ν∥²} · (1/P) Σ_m ŵ(ν⊥ + m/P) G(m/P) e^{2πi m a0/P}
+
+(``P`` the pitch, ``a0`` the offset of a track from the shading point, ``ŵ``
+the window's transform across, ``G`` the transform of one groove's
+``e^{iκp(u)} - 1``), and only the three orders ``m`` nearest to ``-ν⊥P``
+matter where σ ≥ P.  A query that qualifies costs one closed form instead of
+a scan of the ~20 tracks in its window and their transforms.
+
+**Tables** (:func:`periodic_families`, numpy, built when dense tables are
+uploaded): per grid cell up to two *families*, each a maximal set of the
+cell's references that are parallel (|sin| < ``PARALLEL_SIN``), of one width
+and depth, whose lines are equally spaced (``PITCH_TOLERANCE``) and whose
+pieces tile each track without gap or overlap, together with the rectangle
+(in the family's own frame, cell units) where every track runs through and
+no other piece of the cell lies.  A cell with pieces of a third direction, a
+missing or an extra track, or pieces that end irregularly gets no family
+there, and its queries scan as before.
+
+**Kernel** (:func:`find_family`, :func:`family_field`): a query uses a family
+when its window — 6σ across the tracks, 8σ along them (every track's ends
+then lie beyond the 6σ where the scan skips their end terms), both through
+the UV Jacobian — lies inside the family's rectangle and inside its cell
+(whose references are all the pieces the window can meet), and σ ≥ P there.
+Otherwise the lane scans (:func:`.lookup.for_each_segment`).  The closed form
+is the exact sum over the infinite run; the scan drops tracks beyond 4σ
+(e^-8 of the window), so the two differ by that truncation (tests/bsdf/test_periodic.py).
+Units as everywhere in the kernels: µm, 1/µm.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import drjit as dr
+import mitsuba as mi
+import numpy as np
+
+from . import profiles
+from .complexmath import Cx, expi
+from .references import aligned
+
+__all__ = ["PeriodicTables", "periodic_families", "Family", "find_family", "family_field", "family_energy",
+           "MIN_TRACKS", "ACROSS_SIGMAS", "ALONG_SIGMAS"]
+
+#: Fewest tracks in a family (fewer: the scan is as cheap).
+MIN_TRACKS = 8
+#: Largest |sin| between the pieces of a family (float32 directions are ~1e-7 accurate).
+PARALLEL_SIN = 1e-6
+#: Largest deviation of a track's offset from the equally spaced one, relative to the pitch.
+PITCH_TOLERANCE = 1e-4
+#: The same checks in the kernel, between the float32 families of neighbouring cells.
+PARALLEL_SIN_KERNEL = 1e-5
+PITCH_TOLERANCE_KERNEL = 1e-3
+#: Relative tolerance of "the pieces of a track tile it" (gaps and overlaps).
+TILING_TOLERANCE = 1e-6
+#: Offsets closer than this (cells) are the same track.
+SAME_TRACK = 1e-7
+#: Window reach (σ) across the tracks that must lie inside the family's tracks and inside its cell: the
+#: scan's window radius (model.WINDOW_RADIUS_SIGMAS); what lies beyond, the scan drops too (e^-8).
+ACROSS_SIGMAS = 4.0
+#: ... and along the tracks inside its rectangle: every track's ends then lie more than 6σ from x0's
+#: foot point on it (√(8² - 4²) > 6), where the scan skips their end terms (window.END_NEGLIGIBLE_SIGMAS).
+ALONG_SIGMAS = 8.0
+#: Smallest σ/P for the three-order sum (the fourth order is then below e^-44 of the nearest).
+MIN_SIGMA_PER_PITCH = 1.0
+#: Families per cell (a CD cell with a chord's kink holds two).
+SLOTS = 2
+#: Floats per family: n_u, n_v, o_first, pitch | o_last, s_lo, s_hi, W | ±D, 0, 0, 0.
+FAMILY_FLOATS = 12
+#: References per chunk of the numpy build (bounds its temporaries).
+CHUNK_REFERENCES = 1 << 21
+
+
+@dataclass(frozen=True, eq=False)
+class PeriodicTables:
+    """``frames`` (cells, SLOTS, FAMILY_FLOATS) float32 and ``pieces`` (cells, SLOTS) uint32.
+
+    Per family, in the cell's coordinates (cells, from its corner): the unit normal n of its tracks,
+    the offset n·x of its first track and the pitch, the offset of its last track, the interval
+    [s_lo, s_hi] along t = (n_v, -n_u) where all of its tracks run and no other piece lies, the
+    width (µm) and the depth (µm, negative: V-groove) of its grooves; ``pieces``: one of its pieces
+    (the sampler's line).  An empty slot has pitch 0."""
+
+    frames: np.ndarray
+    pieces: np.ndarray
+    families: int  #: families in all
+    cells: int  #: cells holding one or two
+
+
+def periodic_families(cell_start, references, segments, cell_frames, origin, cell_size, shape,
+                      continuation=None) -> PeriodicTables | None:
+    """The families of every cell (module docstring); ``None`` when no cell holds one.
+
+    The arguments are the fields of :class:`.tables.GridTables`; ``continuation`` (its field of that
+    name) lets a track run on past a listed piece's end into a piece the cell does not list."""
+    starts = cell_start.astype(np.int64)
+    counts = np.diff(starts)
+    cells = len(counts)
+    frames = np.zeros((cells, SLOTS, FAMILY_FLOATS), np.float32)
+    pieces = np.zeros((cells, SLOTS), np.uint32)
+    candidates = np.flatnonzero(counts >= MIN_TRACKS)
+    if len(candidates) == 0:
+        return None
+    nu = int(shape[0])
+    if continuation is None:
+        continuation = np.zeros((len(segments), 2), np.float32)
+    # chunks of whole cells
+    bounds = np.searchsorted(np.cumsum(counts[candidates]), np.arange(1, 1 + counts.sum() // CHUNK_REFERENCES + 1)
+                             * CHUNK_REFERENCES)
+    for chunk in np.split(candidates, np.unique(np.clip(bounds, 0, len(candidates)))):
+        if len(chunk):
+            _chunk_families(chunk, starts, counts, references, segments, np.asarray(origin, np.float64),
+                            float(cell_size), nu, frames, pieces, cell_frames[:, 0:2].astype(np.float64),
+                            continuation)
+    filled = frames[:, :, 3] > 0
+    if not filled.any():
+        return None
+    return PeriodicTables(frames=aligned(frames), pieces=aligned(pieces), families=int(filled.sum()),
+                          cells=int(filled.any(axis=1).sum()))
+
+
+def _chunk_families(chunk, starts, counts, references, segments, origin, h, nu, frames, pieces, cell_normals,
+                    continuation):
+    """Fill the slots of the cells in ``chunk`` (vectorised over their references, grouped by cell)."""
+    n_refs = counts[chunk]
+    local = np.repeat(np.arange(len(chunk)), n_refs)  # chunk-local cell of each reference (non-decreasing)
+    first = np.zeros(len(chunk), np.int64)
+    np.cumsum(n_refs[:-1], out=first[1:])
+    index = starts[chunk][local] + (np.arange(len(local)) - first[local])
+    piece = references[index].astype(np.int64)
+    rows = segments[piece]
+    corner = np.stack([chunk % nu, chunk // nu], axis=1).astype(np.float64) * h + origin
+    a = (rows[:, 0:2].astype(np.float64) - corner[local] + rows[:, 2:4]) / h  # cells, from the cell's corner
+    e = rows[:, 4:6].astype(np.float64) / h
+    length = np.hypot(e[:, 0], e[:, 1])
+    usable = length > 0
+    t = e / np.where(usable, length, 1.0)[:, None]
+    width, depth = rows[:, 6], rows[:, 7]
+    runs_on = continuation[piece].astype(np.float64) / h  # cells: straight on before the start, after the end
+    del rows, index
+
+    # ---- family A: parallel to the cell's first piece; B: to its first piece not in A; others spoil the cell
+    def cross(t_ref):
+        return np.abs(t[:, 0] * t_ref[local, 1] - t[:, 1] * t_ref[local, 0])
+
+    t_a = t[first]
+    in_a = cross(t_a) < PARALLEL_SIN
+    not_a = np.where(~in_a, np.arange(len(local)), len(local))
+    first_b = np.minimum.reduceat(not_a, first)
+    has_b = first_b < len(local)
+    t_b = t[np.where(has_b, first_b, 0)]
+    in_b = ~in_a & has_b[local] & (cross(t_b) < PARALLEL_SIN)
+    spoiled = _any_per_cell(~(in_a | in_b) | ~usable, local, len(chunk))
+    normal = cell_normals[chunk]
+    for slot, (member, t_f, other) in enumerate(((in_a, t_a, in_b), (in_b, t_b, in_a))):
+        # orient each family like the cell's normal: its references then come nearly sorted by offset
+        flip = (t_f[:, 1] * normal[:, 0] - t_f[:, 0] * normal[:, 1]) > 0  # n_f = (-t_v, t_u)
+        t_f = np.where(flip[:, None], -t_f, t_f)
+        ok = ~spoiled & (has_b if slot else True)
+        _family(slot, member & ok[local], t_f, other & ok[local], local, a, e, runs_on, piece, width, depth,
+                chunk, frames, pieces)
+
+
+def _any_per_cell(flags, cell_of, cells):
+    return np.bincount(cell_of, weights=flags, minlength=cells) > 0
+
+
+def _project(vectors, direction_x, direction_y):
+    return vectors[:, 0] * direction_x + vectors[:, 1] * direction_y
+
+
+def _family(slot, member, t_f, other, local, a, e, runs_on, piece, width, depth, chunk, frames, pieces):
+    """One slot of every cell of the chunk: the family of the references ``member`` (direction ``t_f``)."""
+    cells = len(chunk)
+    idx = np.flatnonzero(member)
+    if len(idx) == 0:
+        return
+    c = local[idx]
+    tx, ty = t_f[c, 0], t_f[c, 1]  # normal n_f = (-t_y, t_x)
+    offset = _project(a[idx], -ty, tx)
+    s0 = _project(a[idx], tx, ty)
+    s1 = s0 + _project(e[idx], tx, ty)
+    lo, hi = np.minimum(s0, s1), np.maximum(s0, s1)
+    forward = s1 >= s0
+    before, after = runs_on[idx, 0], runs_on[idx, 1]
+    lo_on = lo - np.where(forward, before, after)  # how far the track surely runs
+    hi_on = hi + np.where(forward, after, before)
+    del tx, ty, s0, s1, forward, before, after
+    # sort by (cell, offset): references come sorted by cell and, within one, nearly by offset
+    key = c * 8.0 + offset  # offsets of lines through a cell lie within (-2, 3) cells
+    unsorted = np.flatnonzero(key[1:] < key[:-1])
+    if len(unsorted):
+        order = np.argsort(key, kind="stable")
+        idx, c, offset, lo, hi = idx[order], c[order], offset[order], lo[order], hi[order]
+        lo_on, hi_on = lo_on[order], hi_on[order]
+
+    # ---- tracks: consecutive pieces of one cell at (nearly) one offset
+    new_track = np.ones(len(idx), bool)
+    new_track[1:] = (c[1:] != c[:-1]) | (offset[1:] - offset[:-1] > SAME_TRACK)
+    track_start = np.flatnonzero(new_track)
+    t_cell = c[track_start]
+    t_offset = offset[track_start]
+    span = np.maximum.reduceat(hi, track_start) - np.minimum.reduceat(lo, track_start)
+    tiled = np.abs(np.add.reduceat(hi - lo, track_start) - span) <= TILING_TOLERANCE * np.maximum(span, 1e-12)
+    t_lo = np.minimum.reduceat(lo_on, track_start)
+    t_hi = np.maximum.reduceat(hi_on, track_start)
+    w, d = width[idx], depth[idx]
+
+    # ---- per cell: enough tracks, equally spaced, tiled, one groove shape
+    counts = np.bincount(t_cell, minlength=cells)
+    has = counts >= MIN_TRACKS
+    cell_first = np.zeros(cells + 1, np.int64)
+    np.cumsum(counts, out=cell_first[1:])
+    o_first = np.where(has, t_offset[np.minimum(cell_first[:-1], len(t_offset) - 1)], 0.0)
+    o_last = np.where(has, t_offset[np.maximum(cell_first[1:] - 1, 0)], 0.0)
+    pitch = np.where(has, (o_last - o_first) / np.maximum(counts - 1, 1), 0.0)
+    expected = o_first[t_cell] + pitch[t_cell] * (np.arange(len(t_cell)) - cell_first[t_cell])
+    bad = _any_per_cell((np.abs(t_offset - expected) > PITCH_TOLERANCE * pitch[t_cell]) | ~tiled, t_cell, cells)
+    first_piece = cell_first_piece(c, cells)
+    bad |= _any_per_cell((w != w[first_piece[c]]) | (d != d[first_piece[c]]), c, cells)
+    occupied = counts > 0
+    s_lo = np.full(cells, -np.inf)
+    s_hi = np.full(cells, np.inf)
+    s_lo[occupied] = np.maximum.reduceat(t_lo, cell_first[:-1][occupied])
+    s_hi[occupied] = np.minimum.reduceat(t_hi, cell_first[:-1][occupied])
+
+    # ---- the other family's pieces: beside the tracks, or wholly on one side along them
+    jdx = np.flatnonzero(other)  # grouped by cell, as the references
+    if len(jdx):
+        oc = local[jdx]
+        tx, ty = t_f[oc, 0], t_f[oc, 1]
+        q0 = _project(a[jdx], -ty, tx)
+        q1 = q0 + _project(e[jdx], -ty, tx)
+        r0 = _project(a[jdx], tx, ty)
+        r1 = r0 + _project(e[jdx], tx, ty)
+        r_lo, r_hi = np.minimum(r0, r1), np.maximum(r0, r1)
+        beside = (np.minimum(q0, q1) > o_last[oc]) | (np.maximum(q0, q1) < o_first[oc])
+        middle = 0.5 * (s_lo[oc] + s_hi[oc])
+        above = ~beside & (r_lo >= middle)
+        below = ~beside & (r_hi <= middle)
+        bad |= _any_per_cell(~(beside | above | below), oc, cells)
+        s_hi = np.minimum(s_hi, _per_cell_extreme(np.minimum, np.where(above, r_lo, np.inf), oc, cells, np.inf))
+        s_lo = np.maximum(s_lo, _per_cell_extreme(np.maximum, np.where(below, r_hi, -np.inf), oc, cells, -np.inf))
+
+    keep = has & ~bad & (s_hi > s_lo) & (pitch > 0)
+    rows = np.flatnonzero(keep)
+    target = chunk[rows]
+    frames[target, slot, 0] = -t_f[rows, 1]
+    frames[target, slot, 1] = t_f[rows, 0]
+    frames[target, slot, 2] = o_first[rows]
+    frames[target, slot, 3] = pitch[rows]
+    frames[target, slot, 4] = o_last[rows]
+    frames[target, slot, 5] = s_lo[rows]
+    frames[target, slot, 6] = s_hi[rows]
+    frames[target, slot, 7] = w[first_piece[rows]]
+    frames[target, slot, 8] = d[first_piece[rows]]
+    pieces[target, slot] = piece[idx[first_piece[rows]]]
+
+
+def _per_cell_extreme(ufunc, values, cell_of, cells, fill):
+    """``ufunc.reduce`` of ``values`` per cell (``cell_of`` non-decreasing); ``fill`` for cells without."""
+    result = np.full(cells, fill)
+    present = np.ones(len(cell_of), bool)
+    present[1:] = cell_of[1:] != cell_of[:-1]
+    starts = np.flatnonzero(present)
+    result[cell_of[starts]] = ufunc.reduceat(values, starts)
+    return result
+
+
+def cell_first_piece(cell_of, cells):
+    """Index of the first entry of each cell in the cell-sorted array ``cell_of`` (0 for cells without)."""
+    first = np.zeros(cells, np.int64)
+    present = np.ones(len(cell_of), bool)
+    present[1:] = cell_of[1:] != cell_of[:-1]
+    first[cell_of[present]] = np.flatnonzero(present)
+    return first
+
+
+# ------------------------------------------------------------------ kernel
+@dataclass
+class Family:
+    """The family a shading point's window lies in (``eligible``), seen from x0 (local frame, µm)."""
+
+    eligible: object  #: mi.Bool
+    dx: object  #: mi.Float: unit direction of the tracks
+    dy: object
+    pitch: object  #: mi.Float: P (µm)
+    a0: object  #: mi.Float: signed distance a·n of the nearest track's centre line from x0, |a0| <= P/2
+    width: object  #: mi.Float: W (µm)
+    depth: object  #: mi.Float: D (µm)
+    triangular: object  #: mi.Bool
+    piece: object  #: mi.UInt32: one of its pieces (the sampler's line)
+
+
+class _Slot(NamedTuple):
+    """One family slot of one cell, tested against one window."""
+
+    holds: object  #: mi.Bool: a family whose rectangle holds the window's part in the cell
+    n_u: object
+    n_v: object
+    pitch: object  #: µm
+    offset: object  #: µm: signed distance a·n of its first track from x0 (n of the tracks' local frame)
+    width: object
+    depth: object  #: ±D
+    piece: object
+
+
+def find_family(grid, jac, sigma, active) -> Family:
+    """The family whose tracks fill x0's window, if any (module docstring).
+
+    The window's box may reach into the neighbouring cells (at most 2 × 2 cells): each cell it touches
+    must hold the same run (same direction, pitch and groove, offsets a whole number of pitches apart)
+    with a rectangle holding the window's part in that cell (the box clipped to it)."""
+    gu = (jac.uv.x - grid.origin_u) * grid.inverse_cell_size
+    gv = (jac.uv.y - grid.origin_v) * grid.inverse_cell_size
+    det = jac.j00 * jac.j11 - jac.j01 * jac.j10
+    norm2 = jac.j00 * jac.j00 + jac.j01 * jac.j01 + jac.j10 * jac.j10 + jac.j11 * jac.j11
+    usable = mi.Bool(active) & (dr.abs(det) > 1e-12 * norm2)
+    inv_det = dr.rcp(dr.select(usable, dr.abs(det), 1.0))
+    scale = inv_det * grid.inverse_cell_size  # cells per µm, times |adj(J)ᵀ·| below
+    reach = ACROSS_SIGMAS * sigma * scale
+    extent_u = reach * dr.sqrt(jac.j11 * jac.j11 + jac.j01 * jac.j01) + grid.margin
+    extent_v = reach * dr.sqrt(jac.j10 * jac.j10 + jac.j00 * jac.j00) + grid.margin
+    u0, u1 = dr.floor(gu - extent_u), dr.floor(gu + extent_u)
+    v0, v1 = dr.floor(gv - extent_v), dr.floor(gv + extent_v)
+    usable &= ((u0 >= 0.0) & (v0 >= 0.0) & (u1 < mi.Float(grid.cells_u)) & (v1 < mi.Float(grid.cells_v))
+               & (u1 - u0 <= 1.0) & (v1 - v0 <= 1.0) & dr.isfinite(extent_u) & dr.isfinite(extent_v))
+    signed = dr.select(det >= 0.0, 1.0, -1.0)
+
+    def slot(cu, cv, k, wanted) -> _Slot:
+        """Slot k of cell (cu, cv) against the window's box clipped to that cell."""
+        cell = mi.UInt32(mi.Int32(cv) * grid.cells_u + mi.Int32(cu))
+        base = (cell * SLOTS + k) * 3
+        f0 = dr.gather(mi.Vector4f, grid.family_frames, base, wanted)  # n_u, n_v, o_first, pitch
+        f1 = dr.gather(mi.Vector4f, grid.family_frames, base + 1, wanted)  # o_last, s_lo, s_hi, W
+        depth = dr.gather(mi.Float, grid.family_frames, 4 * (base + 2), wanted)  # ±D
+        du, dv = gu - cu, gv - cv  # x0 in this cell's coordinates
+        box_u0, box_u1 = dr.maximum(du - extent_u, 0.0), dr.minimum(du + extent_u, 1.0)
+        box_v0, box_v1 = dr.maximum(dv - extent_v, 0.0), dr.minimum(dv + extent_v, 1.0)
+        positive_u, positive_v = f0.x >= 0.0, f0.y >= 0.0
+        box_lo = f0.x * dr.select(positive_u, box_u0, box_u1) + f0.y * dr.select(positive_v, box_v0, box_v1)
+        box_hi = f0.x * dr.select(positive_u, box_u1, box_u0) + f0.y * dr.select(positive_v, box_v1, box_v0)
+        s = f0.y * du - f0.x * dv  # along t = (n_v, -n_u)
+        adj_n = dr.sqrt(dr.square(jac.j11 * f0.x - jac.j10 * f0.y) + dr.square(jac.j00 * f0.y - jac.j01 * f0.x))
+        adj_t = dr.sqrt(dr.square(jac.j11 * f0.y + jac.j10 * f0.x) + dr.square(jac.j00 * f0.x + jac.j01 * f0.y))
+        along = (ALONG_SIGMAS * sigma) * scale * adj_t + grid.margin
+        micrometres_per_cell = dr.abs(det) * dr.rcp(dr.maximum(adj_n, 1e-30)) * grid.cell_size
+        holds = (wanted & (f0.w > 0.0) & (box_lo >= f0.z) & (box_hi <= f1.x) & (s - along >= f1.y)
+                 & (s + along <= f1.z))
+        offset = signed * (f0.z - (f0.x * du + f0.y * dv)) * micrometres_per_cell
+        piece = dr.gather(mi.UInt32, grid.family_pieces, cell * SLOTS + k, wanted)
+        return _Slot(holds, f0.x, f0.y, f0.w * micrometres_per_cell, offset, f1.w, depth, piece)
+
+    # ---- the family of x0's own cell
+    u = dr.floor(dr.clip(gu, 0.0, mi.Float(grid.cells_u - 1)))
+    v = dr.floor(dr.clip(gv, 0.0, mi.Float(grid.cells_v - 1)))
+    first = slot(u, v, 0, usable)
+    second = slot(u, v, 1, usable & ~first.holds)
+    own = _Slot(*(dr.select(first.holds, a, b) for a, b in zip(first, second)))
+    eligible = own.holds & (sigma >= MIN_SIGMA_PER_PITCH * own.pitch)
+
+    # ---- every cell of the window's box continues it (x0's own cell included: it matches itself)
+    inv_pitch = dr.rcp(dr.maximum(own.pitch, 1e-30))
+
+    def continues(other: _Slot):
+        same_way = dr.abs(other.n_u * own.n_v - other.n_v * own.n_u) < PARALLEL_SIN_KERNEL
+        flip = dr.select(other.n_u * own.n_u + other.n_v * own.n_v >= 0.0, 1.0, -1.0)
+        shift = (flip * other.offset - own.offset) * inv_pitch  # whole pitches apart
+        return (other.holds & same_way & (dr.abs(shift - dr.round(shift)) < PITCH_TOLERANCE_KERNEL)
+                & (dr.abs(other.pitch - own.pitch) < PITCH_TOLERANCE_KERNEL * own.pitch)
+                & (other.width == own.width) & (other.depth == own.depth))
+
+    for cu, cv in ((u0, v0), (u1, v0), (u0, v1), (u1, v1)):
+        wanted = eligible & ((cu != u) | (cv != v))
+        a = slot(cu, cv, 0, wanted)
+        matched = continues(a)
+        b = slot(cu, cv, 1, wanted & ~matched)
+        eligible &= ~wanted | matched | continues(b)
+
+    offset = own.offset - own.pitch * dr.round(own.offset * inv_pitch)
+    # the tracks' direction in the local frame: J t, t = (n_v, -n_u)
+    ex, ey = jac.j00 * own.n_v - jac.j01 * own.n_u, jac.j10 * own.n_v - jac.j11 * own.n_u
+    inv = dr.rsqrt(dr.maximum(ex * ex + ey * ey, 1e-30))
+    return Family(eligible=eligible, dx=ex * inv, dy=ey * inv, pitch=own.pitch, a0=offset,
+                  width=dr.maximum(own.width, profiles.MIN_WIDTH_UM), depth=dr.abs(own.depth),
+                  triangular=own.depth < 0.0, piece=own.piece)
+
+
+def _sinc(x):
+    return dr.select(dr.abs(x) < 1e-4, 1.0 - x * x * (1.0 / 6.0), dr.sin(x) / x)
+
+
+def groove_transform(family: Family, mu, kappa) -> Cx:
+    """``G(μ) = ∫ (e^{iκp(v)} - 1) e^{2πiμv} dv`` over one groove (µm), per wavelength."""
+    width = family.width
+    box = width * _sinc(math.pi * mu * width)
+    flat = (expi(kappa) - 1.0) * box
+
+    def v_groove():  # two facets of phase κ ± (2κ/W) v, less the box
+        quarter = 0.25 * width
+        plus = (2.0 * math.pi) * mu + 2.0 * kappa / width
+        minus = (2.0 * math.pi) * mu - 2.0 * kappa / width
+        facets = expi(kappa - plus * quarter) * _sinc(plus * quarter) + expi(kappa + minus * quarter) * _sinc(
+            minus * quarter)
+        return facets * (0.5 * width) - box
+
+    v = v_groove()
+    return Cx(dr.select(family.triangular, v.re, flat.re), dr.select(family.triangular, v.im, flat.im))
+
+
+def family_field(family: Family, xi_x, xi_y, k_z, sigma) -> Cx:
+    """``Σ_n S_n(ξ)`` over the family's infinite run (module docstring), per wavelength."""
+    nu_par = xi_x * family.dx + xi_y * family.dy
+    nu_perp = xi_y * family.dx - xi_x * family.dy
+    kappa = k_z * family.depth
+    sigma2 = sigma * sigma
+    gauss = math.sqrt(2.0 * math.pi) * sigma
+    along = gauss * dr.exp((-2.0 * math.pi ** 2) * sigma2 * nu_par * nu_par)
+    inv_pitch = dr.rcp(family.pitch)
+    nearest = dr.round(-nu_perp * family.pitch)
+    total = Cx(dr.zeros(type(nu_perp)), dr.zeros(type(nu_perp)))
+    for m in (-1.0, 0.0, 1.0):
+        order = nearest + m
+        mu = order * inv_pitch
+        eta = nu_perp + mu
+        window = gauss * dr.exp((-2.0 * math.pi ** 2) * sigma2 * eta * eta)
+        phase = expi((2.0 * math.pi) * order * family.a0 * inv_pitch)
+        total = total + groove_transform(family, mu, kappa) * phase * window
+    return total * (along * inv_pitch)
+
+
+def family_energy(family: Family, kappa, sigma):
+    """``Σ_n ε_n`` of :func:`.sampling.window_energy` over the run (Poisson summation of e^{-a_n²/σ²})."""
+    ratio = sigma * dr.rcp(family.pitch)
+    tracks = math.sqrt(math.pi) * ratio * (1.0 + 2.0 * dr.exp(-(math.pi ** 2) * ratio * ratio)
+                                           * dr.cos((2.0 * math.pi) * family.a0 * dr.rcp(family.pitch)))
+    return family.width * math.sqrt(math.pi) * sigma * tracks
