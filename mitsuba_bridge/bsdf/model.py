@@ -100,6 +100,10 @@ class Model:
         weight = family_energy(family, kappa, self.sigma) * sampling.groove_energy(family.triangular, kappa, True)
         return dr.select(family.eligible, weight, 0.0)
 
+    def _family_field(self, family, lobe, xi_x, xi_y, k_z):
+        s = family_field(family, xi_x, xi_y, k_z, self.sigma)
+        return mi.Spectrum(lobe + s.re), mi.Spectrum(s.im)
+
     @staticmethod
     def _family_line(family):
         """Its tracks as the sampler sees a segment (direction, width, depth, profile)."""
@@ -143,9 +147,9 @@ class Model:
         if family is not None:  # lanes inside a periodic family: its closed form, no search
             inside = family.eligible
             scanning &= ~inside
-            if want_value:
-                s = family_field(family, xi_x, xi_y, k_z, sigma)
-                field = (spectrum(lobe + dr.select(inside, s.re, 0.0)), spectrum(dr.select(inside, s.im, 0.0)))
+            if want_value:  # (whole SIMD packets outside every family skip it)
+                field = dr.if_stmt((lobe,), inside, lambda lobe: self._family_field(family, lobe, xi_x, xi_y, k_z),
+                                   lambda lobe: (lobe, zero_s), label="scratch_family_field")
             if want_pdf:
                 energy0 = self._family_weight(family, kz0)
                 density0 = energy0 * self._scratch_density(self._family_line(family), xi0_x, xi0_y, wi, lam0, kz0)

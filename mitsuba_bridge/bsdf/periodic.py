@@ -36,6 +36,8 @@ Units as everywhere in the kernels: µm, 1/µm.
 from __future__ import annotations
 
 import math
+import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -55,10 +57,11 @@ MIN_TRACKS = 8
 #: Largest |sin| between the pieces of a family (float32 directions are ~1e-7 accurate).
 PARALLEL_SIN = 1e-6
 #: Largest deviation of a track's offset from the equally spaced one, relative to the pitch.
-PITCH_TOLERANCE = 1e-4
-#: The same checks in the kernel, between the float32 families of neighbouring cells.
+PITCH_TOLERANCE = 1e-2
+#: The same checks in the kernel, between the float32 families of neighbouring cells: directions, and
+#: offsets a whole number of pitches apart up to both families' deviations (and pitches as close).
 PARALLEL_SIN_KERNEL = 1e-5
-PITCH_TOLERANCE_KERNEL = 1e-3
+PITCH_TOLERANCE_KERNEL = 2 * PITCH_TOLERANCE
 #: Relative tolerance of "the pieces of a track tile it" (gaps and overlaps).
 TILING_TOLERANCE = 1e-6
 #: Offsets closer than this (cells) are the same track.
@@ -75,8 +78,10 @@ MIN_SIGMA_PER_PITCH = 1.0
 SLOTS = 2
 #: Floats per family: n_u, n_v, o_first, pitch | o_last, s_lo, s_hi, W | ±D, 0, 0, 0.
 FAMILY_FLOATS = 12
-#: References per chunk of the numpy build (bounds its temporaries).
-CHUNK_REFERENCES = 1 << 21
+#: References per chunk of the numpy build (bounds its temporaries, ~150 bytes per reference) ...
+CHUNK_REFERENCES = 1 << 19
+#: ... and chunks built at once.
+BUILD_THREADS = 4
 
 
 @dataclass(frozen=True, eq=False)
@@ -112,14 +117,18 @@ def periodic_families(cell_start, references, segments, cell_frames, origin, cel
     nu = int(shape[0])
     if continuation is None:
         continuation = np.zeros((len(segments), 2), np.float32)
-    # chunks of whole cells
+    # chunks of whole cells, on a few threads (numpy releases the GIL; each chunk writes its own cells)
     bounds = np.searchsorted(np.cumsum(counts[candidates]), np.arange(1, 1 + counts.sum() // CHUNK_REFERENCES + 1)
                              * CHUNK_REFERENCES)
-    for chunk in np.split(candidates, np.unique(np.clip(bounds, 0, len(candidates)))):
-        if len(chunk):
-            _chunk_families(chunk, starts, counts, references, segments, np.asarray(origin, np.float64),
-                            float(cell_size), nu, frames, pieces, cell_frames[:, 0:2].astype(np.float64),
-                            continuation)
+    chunks = [chunk for chunk in np.split(candidates, np.unique(np.clip(bounds, 0, len(candidates)))) if len(chunk)]
+    normals = cell_frames[:, 0:2].astype(np.float64)
+
+    def run(chunk):
+        _chunk_families(chunk, starts, counts, references, segments, np.asarray(origin, np.float64),
+                        float(cell_size), nu, frames, pieces, normals, continuation)
+
+    with ThreadPoolExecutor(max_workers=min(BUILD_THREADS, os.cpu_count() or 1)) as pool:
+        list(pool.map(run, chunks))
     filled = frames[:, :, 3] > 0
     if not filled.any():
         return None
@@ -165,7 +174,7 @@ def _chunk_families(chunk, starts, counts, references, segments, origin, h, nu, 
         flip = (t_f[:, 1] * normal[:, 0] - t_f[:, 0] * normal[:, 1]) > 0  # n_f = (-t_v, t_u)
         t_f = np.where(flip[:, None], -t_f, t_f)
         ok = ~spoiled & (has_b if slot else True)
-        _family(slot, member & ok[local], t_f, other & ok[local], local, a, e, runs_on, piece, width, depth,
+        _family(slot, member & ok[local], t_f, other & ok[local], local, a, e, t, runs_on, piece, width, depth,
                 chunk, frames, pieces)
 
 
@@ -177,7 +186,7 @@ def _project(vectors, direction_x, direction_y):
     return vectors[:, 0] * direction_x + vectors[:, 1] * direction_y
 
 
-def _family(slot, member, t_f, other, local, a, e, runs_on, piece, width, depth, chunk, frames, pieces):
+def _family(slot, member, t_f, other, local, a, e, t, runs_on, piece, width, depth, chunk, frames, pieces):
     """One slot of every cell of the chunk: the family of the references ``member`` (direction ``t_f``)."""
     cells = len(chunk)
     idx = np.flatnonzero(member)
@@ -185,7 +194,12 @@ def _family(slot, member, t_f, other, local, a, e, runs_on, piece, width, depth,
         return
     c = local[idx]
     tx, ty = t_f[c, 0], t_f[c, 1]  # normal n_f = (-t_y, t_x)
-    offset = _project(a[idx], -ty, tx)
+    # offset of each piece's own line where it passes the cell's centre (pieces of one straight track agree
+    # there exactly; their start points would differ by their direction's float32 rounding times the length)
+    start = a[idx]
+    along_to_centre = _project(0.5 - start, t[idx, 0], t[idx, 1])
+    offset = _project(start + along_to_centre[:, None] * t[idx], -ty, tx)
+    del start, along_to_centre
     s0 = _project(a[idx], tx, ty)
     s1 = s0 + _project(e[idx], tx, ty)
     lo, hi = np.minimum(s0, s1), np.maximum(s0, s1)
@@ -353,45 +367,62 @@ def find_family(grid, jac, sigma, active) -> Family:
         adj_t = dr.sqrt(dr.square(jac.j11 * f0.y + jac.j10 * f0.x) + dr.square(jac.j00 * f0.x + jac.j01 * f0.y))
         along = (ALONG_SIGMAS * sigma) * scale * adj_t + grid.margin
         micrometres_per_cell = dr.abs(det) * dr.rcp(dr.maximum(adj_n, 1e-30)) * grid.cell_size
-        holds = (wanted & (f0.w > 0.0) & (box_lo >= f0.z) & (box_hi <= f1.x) & (s - along >= f1.y)
+        # no lattice position of the part lies beyond the first or the last track (those beyond the cell's
+        # part belong to its neighbours, checked there), and every track runs past the window's reach
+        gap = (1.0 - 2.0 * PITCH_TOLERANCE) * f0.w
+        holds = (wanted & (f0.w > 0.0) & (box_lo >= f0.z - gap) & (box_hi <= f1.x + gap) & (s - along >= f1.y)
                  & (s + along <= f1.z))
         offset = signed * (f0.z - (f0.x * du + f0.y * dv)) * micrometres_per_cell
         piece = dr.gather(mi.UInt32, grid.family_pieces, cell * SLOTS + k, wanted)
         return _Slot(holds, f0.x, f0.y, f0.w * micrometres_per_cell, offset, f1.w, depth, piece)
 
-    # ---- the family of x0's own cell
+    # ---- only lanes whose own cell holds a family go on (whole SIMD packets elsewhere skip the rest)
     u = dr.floor(dr.clip(gu, 0.0, mi.Float(grid.cells_u - 1)))
     v = dr.floor(dr.clip(gv, 0.0, mi.Float(grid.cells_v - 1)))
-    first = slot(u, v, 0, usable)
-    second = slot(u, v, 1, usable & ~first.holds)
-    own = _Slot(*(dr.select(first.holds, a, b) for a, b in zip(first, second)))
-    eligible = own.holds & (sigma >= MIN_SIGMA_PER_PITCH * own.pitch)
+    own_cell = mi.UInt32(mi.Int32(v) * grid.cells_u + mi.Int32(u))
+    pitch_floats = [4 * ((own_cell * SLOTS + k) * 3) + 3 for k in range(SLOTS)]
+    candidate = usable & ((dr.gather(mi.Float, grid.family_frames, pitch_floats[0], usable) > 0.0)
+                          | (dr.gather(mi.Float, grid.family_frames, pitch_floats[1], usable) > 0.0))
 
-    # ---- every cell of the window's box continues it (x0's own cell included: it matches itself)
-    inv_pitch = dr.rcp(dr.maximum(own.pitch, 1e-30))
+    def search(candidate):
+        first = slot(u, v, 0, candidate)
+        second = slot(u, v, 1, candidate & ~first.holds)
+        own = _Slot(*(dr.select(first.holds, a, b) for a, b in zip(first, second)))
+        eligible = own.holds & (sigma >= MIN_SIGMA_PER_PITCH * own.pitch)
 
-    def continues(other: _Slot):
-        same_way = dr.abs(other.n_u * own.n_v - other.n_v * own.n_u) < PARALLEL_SIN_KERNEL
-        flip = dr.select(other.n_u * own.n_u + other.n_v * own.n_v >= 0.0, 1.0, -1.0)
-        shift = (flip * other.offset - own.offset) * inv_pitch  # whole pitches apart
-        return (other.holds & same_way & (dr.abs(shift - dr.round(shift)) < PITCH_TOLERANCE_KERNEL)
-                & (dr.abs(other.pitch - own.pitch) < PITCH_TOLERANCE_KERNEL * own.pitch)
-                & (other.width == own.width) & (other.depth == own.depth))
+        # every cell of the window's box continues it (x0's own cell included: it matches itself)
+        inv_pitch = dr.rcp(dr.maximum(own.pitch, 1e-30))
 
-    for cu, cv in ((u0, v0), (u1, v0), (u0, v1), (u1, v1)):
-        wanted = eligible & ((cu != u) | (cv != v))
-        a = slot(cu, cv, 0, wanted)
-        matched = continues(a)
-        b = slot(cu, cv, 1, wanted & ~matched)
-        eligible &= ~wanted | matched | continues(b)
+        def continues(other: _Slot):
+            same_way = dr.abs(other.n_u * own.n_v - other.n_v * own.n_u) < PARALLEL_SIN_KERNEL
+            flip = dr.select(other.n_u * own.n_u + other.n_v * own.n_v >= 0.0, 1.0, -1.0)
+            shift = (flip * other.offset - own.offset) * inv_pitch  # whole pitches apart
+            return (other.holds & same_way & (dr.abs(shift - dr.round(shift)) < PITCH_TOLERANCE_KERNEL)
+                    & (dr.abs(other.pitch - own.pitch) < PITCH_TOLERANCE_KERNEL * own.pitch)
+                    & (other.width == own.width) & (other.depth == own.depth))
 
-    offset = own.offset - own.pitch * dr.round(own.offset * inv_pitch)
-    # the tracks' direction in the local frame: J t, t = (n_v, -n_u)
-    ex, ey = jac.j00 * own.n_v - jac.j01 * own.n_u, jac.j10 * own.n_v - jac.j11 * own.n_u
-    inv = dr.rsqrt(dr.maximum(ex * ex + ey * ey, 1e-30))
-    return Family(eligible=eligible, dx=ex * inv, dy=ey * inv, pitch=own.pitch, a0=offset,
-                  width=dr.maximum(own.width, profiles.MIN_WIDTH_UM), depth=dr.abs(own.depth),
-                  triangular=own.depth < 0.0, piece=own.piece)
+        for cu, cv in ((u0, v0), (u1, v0), (u0, v1), (u1, v1)):
+            wanted = eligible & ((cu != u) | (cv != v))
+            a = slot(cu, cv, 0, wanted)
+            matched = continues(a)
+            b = slot(cu, cv, 1, wanted & ~matched)
+            eligible &= ~wanted | matched | continues(b)
+
+        offset = own.offset - own.pitch * dr.round(own.offset * inv_pitch)
+        # the tracks' direction in the local frame: J t, t = (n_v, -n_u)
+        ex, ey = jac.j00 * own.n_v - jac.j01 * own.n_u, jac.j10 * own.n_v - jac.j11 * own.n_u
+        inv = dr.rsqrt(dr.maximum(ex * ex + ey * ey, 1e-30))
+        return eligible, ex * inv, ey * inv, own.pitch, offset, own.width, own.depth, own.piece
+
+    def nothing(candidate):
+        zero = dr.zeros(mi.Float)
+        return dr.zeros(mi.Bool), zero, zero, zero, zero, zero, zero, dr.zeros(mi.UInt32)
+
+    eligible, dx, dy, pitch, offset, width, depth, piece = dr.if_stmt(
+        (candidate,), candidate, search, nothing, label="scratch_family")
+    return Family(eligible=eligible, dx=dx, dy=dy, pitch=pitch, a0=offset,
+                  width=dr.maximum(width, profiles.MIN_WIDTH_UM), depth=dr.abs(depth), triangular=depth < 0.0,
+                  piece=piece)
 
 
 def _sinc(x):

@@ -174,12 +174,13 @@ STRAIGHT_ON_SIN = 1e-6
 
 
 def continuations(a, b, segments) -> np.ndarray:
-    """``(N, 2)`` float32: per piece, the length (UV) of a piece of the same groove (width, depth) that
-    starts exactly where it ends, straight on, and of one that ends where it starts (else 0).
+    """``(N, 2)`` float32: per piece, how far (UV) its groove runs on straight before its start and after
+    its end, through pieces of the same width and depth that meet it end to start (0: it ends or turns).
 
     Long pieces are split (``MAX_PIECE_UV``) and polylines may run straight on: a periodic family
     (:mod:`.periodic`) then knows that a track listed in a cell by one piece goes on past that piece's
-    end.  Ends meet in float64 to the last bit or so; they are matched on a 2⁻³¹-of-the-extent lattice."""
+    end.  Ends meet in float64 to the last bit or so; they are matched on a lattice of 2⁻³⁰ of the
+    extent, and the runs summed by pointer doubling."""
     count = len(a)
     result = np.zeros((count, 2), np.float32)
     if count < 2:
@@ -193,21 +194,62 @@ def continuations(a, b, segments) -> np.ndarray:
         return (q[:, 0] << 31) | q[:, 1]
 
     start_keys = keys(a)
-    order = np.argsort(start_keys, kind="stable")
+    order = np.argsort(start_keys)
     sorted_keys = start_keys[order]
-    end_keys = keys(b)
-    at = np.minimum(np.searchsorted(sorted_keys, end_keys), count - 1)
-    follower = order[at]
-    found = sorted_keys[at] == end_keys
-    e = b - a
-    length = np.hypot(e[:, 0], e[:, 1])
-    unit = e / np.where(length > 0, length, 1.0)[:, None]
-    straight = (np.abs(unit[:, 0] * unit[follower, 1] - unit[:, 1] * unit[follower, 0]) < STRAIGHT_ON_SIN) & (
-        np.einsum("ij,ij->i", unit, unit[follower]) > 0)
-    same = (segments[:, 6] == segments[follower, 6]) & (segments[:, 7] == segments[follower, 7])
-    joined = np.flatnonzero(found & straight & same & (follower != np.arange(count)))
-    result[joined, 1] = length[follower[joined]]
-    result[follower[joined], 0] = length[joined]
+    del start_keys
+    successor = np.full(count, -1, np.int64)
+    for first in range(0, count, CHUNK):  # chunks of ends bound the temporaries
+        mine = np.arange(first, min(first + CHUNK, count))
+        end_keys = keys(b[mine])
+        at = np.minimum(np.searchsorted(sorted_keys, end_keys), count - 1)
+        follower = order[at]
+        e, e_next = b[mine] - a[mine], b[follower] - a[follower]
+        size = np.hypot(e[:, 0], e[:, 1]) * np.hypot(e_next[:, 0], e_next[:, 1])
+        straight = ((np.abs(e[:, 0] * e_next[:, 1] - e[:, 1] * e_next[:, 0]) < STRAIGHT_ON_SIN * np.maximum(size, 1e-300))
+                    & (np.einsum("ij,ij->i", e, e_next) > 0))
+        same = (segments[mine, 6] == segments[follower, 6]) & (segments[mine, 7] == segments[follower, 7])
+        joined = (sorted_keys[at] == end_keys) & straight & same & (follower != mine)
+        successor[mine[joined]] = follower[joined]
+    del order, sorted_keys
+    length = np.hypot(*(b - a).T)
+    predecessor = np.full(count, -1, np.int64)
+    predecessor[successor[successor >= 0]] = np.flatnonzero(successor >= 0)
+    for column, link in ((1, successor), (0, predecessor)):
+        run = np.where(link >= 0, length[np.maximum(link, 0)], 0.0)  # the next piece, then doubling
+        link = link.copy()
+        while np.any(link >= 0):
+            ahead = link >= 0
+            target = np.maximum(link, 0)
+            run = run + np.where(ahead, run[target], 0.0)
+            link = np.where(ahead, link[target], -1)
+        result[:, column] = run
+    return result
+    lo = np.minimum(a.min(axis=0), b.min(axis=0))
+    extent = float(np.max(np.maximum(a.max(axis=0), b.max(axis=0)) - lo))
+    step = max(extent, 1e-30) / float(1 << 30)
+
+    def keys(points):
+        q = np.floor((points - lo) / step).astype(np.int64)
+        return (q[:, 0] << 31) | q[:, 1]
+
+    start_keys = keys(a)
+    order = np.argsort(start_keys)
+    sorted_keys = start_keys[order]
+    del start_keys
+    for first in range(0, count, CHUNK):  # chunks of ends bound the temporaries
+        mine = np.arange(first, min(first + CHUNK, count))
+        end_keys = keys(b[mine])
+        at = np.minimum(np.searchsorted(sorted_keys, end_keys), count - 1)
+        follower = order[at]
+        e, e_next = b[mine] - a[mine], b[follower] - a[follower]
+        length, length_next = np.hypot(e[:, 0], e[:, 1]), np.hypot(e_next[:, 0], e_next[:, 1])
+        straight = ((np.abs(e[:, 0] * e_next[:, 1] - e[:, 1] * e_next[:, 0])
+                     < STRAIGHT_ON_SIN * np.maximum(length * length_next, 1e-300))
+                    & (np.einsum("ij,ij->i", e, e_next) > 0))
+        same = (segments[mine, 6] == segments[follower, 6]) & (segments[mine, 7] == segments[follower, 7])
+        joined = (sorted_keys[at] == end_keys) & straight & same & (follower != mine)
+        result[mine[joined], 1] = length_next[joined]
+        result[follower[joined], 0] = length[joined]
     return result
 
 
