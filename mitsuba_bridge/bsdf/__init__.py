@@ -34,7 +34,8 @@ def register() -> None:
 
 def plugin_dict(scratches=None, *, filename=None, coherence_diameter=DEFAULT_COHERENCE_DIAMETER_M,
                 unit_scale=1.0, material=DEFAULT_MATERIAL, eta=None, k=None, diffuse_reflectance=None,
-                coherent=True, depth_phase=DEFAULT_DEPTH_PHASE, crossings=DEFAULT_CROSSINGS) -> dict:
+                coherent=True, depth_phase=DEFAULT_DEPTH_PHASE, crossings=DEFAULT_CROSSINGS,
+                cell_size=0.0) -> dict:
     """The ``mi.load_dict`` dictionary of a ``scratch_diffraction`` BSDF.
 
     Parameters
@@ -65,6 +66,9 @@ def plugin_dict(scratches=None, *, filename=None, coherence_diameter=DEFAULT_COH
         ``"additive"`` (the paper's sum of transfer functions) or
         ``"height_field"`` (crossings of rectangular scratches take the deeper
         depth, docs/model.md §3.4).  Written only when not the default.
+    cell_size : float
+        UV size of the lookup grid's cells (rounded up to a power of two); 0,
+        the default, picks it from the scratch density.  Written only when set.
 
     Needs an active Mitsuba variant (the tensors belong to it).
     """
@@ -78,6 +82,8 @@ def plugin_dict(scratches=None, *, filename=None, coherence_diameter=DEFAULT_COH
         result["depth_phase"] = str(depth_phase)
     if crossings != DEFAULT_CROSSINGS:
         result["crossings"] = str(crossings)
+    if cell_size:
+        result["cell_size"] = float(cell_size)
     if eta is not None:
         result["eta"], result["k"] = _spectrum(eta), _spectrum(k)
     else:

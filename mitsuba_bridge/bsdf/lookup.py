@@ -71,6 +71,7 @@ class Grid:
     family_frames: object = None
     family_pieces: object = None  #: mi.UInt32, per cell SLOTS: one piece of each family
     cell_size: object = None  #: opaque mi.Float: the cell's side in UV units
+    family_count: int = 0  #: periodic families in all (to_string)
 
     @property
     def periodic(self) -> bool:
@@ -112,7 +113,8 @@ class Grid:
             bucketed=bucketed,
             family_frames=None if families is None else _owned(mi.Float, families.frames.ravel()),
             family_pieces=None if families is None else _owned(mi.UInt32, families.pieces.ravel()),
-            cell_size=dr.opaque(mi.Float, tables.cell_size))
+            cell_size=dr.opaque(mi.Float, tables.cell_size),
+            family_count=0 if families is None else families.families)
 
 
 def references_per_occupied_cell(cell_start) -> float:

@@ -64,8 +64,9 @@ PARALLEL_SIN_KERNEL = 1e-5
 PITCH_TOLERANCE_KERNEL = 2 * PITCH_TOLERANCE
 #: Relative tolerance of "the pieces of a track tile it" (gaps and overlaps).
 TILING_TOLERANCE = 1e-6
-#: Offsets closer than this (cells) are the same track.
-SAME_TRACK = 1e-7
+#: Offsets closer than this (cells) are the same track: pieces of one measure it along their own float32
+#: directions (~1e-7 per cell of distance), while n tracks across a cell lie ~1/n cell apart (n: hundreds).
+SAME_TRACK = 1e-5
 #: Window reach (σ) across the tracks that must lie inside the family's tracks and inside its cell: the
 #: scan's window radius (model.WINDOW_RADIUS_SIGMAS); what lies beyond, the scan drops too (e^-8).
 ACROSS_SIGMAS = 4.0
@@ -74,6 +75,9 @@ ACROSS_SIGMAS = 4.0
 ALONG_SIGMAS = 8.0
 #: Smallest σ/P for the three-order sum (the fourth order is then below e^-44 of the nearest).
 MIN_SIGMA_PER_PITCH = 1.0
+#: Cells whose pieces spread more than this across their dominant direction hold no family (a CD's
+#: chords turn by 2.5°, spreading 0.02 cells; pieces in all directions spread about a cell).
+MAX_SPREAD_CELLS = 0.1
 #: Families per cell (a CD cell with a chord's kink holds two).
 SLOTS = 2
 #: Floats per family: n_u, n_v, o_first, pitch | o_last, s_lo, s_hi, W | ±D, 0, 0, 0.
@@ -111,7 +115,9 @@ def periodic_families(cell_start, references, segments, cell_frames, origin, cel
     cells = len(counts)
     frames = np.zeros((cells, SLOTS, FAMILY_FLOATS), np.float32)
     pieces = np.zeros((cells, SLOTS), np.uint32)
-    candidates = np.flatnonzero(counts >= MIN_TRACKS)
+    # cells of nearly parallel pieces only (the tables' largest offset spread of a piece across the cell's
+    # dominant direction): a scattered set is passed over at no cost
+    candidates = np.flatnonzero((counts >= MIN_TRACKS) & (cell_frames[:, 2] < MAX_SPREAD_CELLS))
     if len(candidates) == 0:
         return None
     nu = int(shape[0])

@@ -312,7 +312,8 @@ def _make_class() -> type:
                     f"unit_scale={dr.slice(self.unit_scale):.3g} m, material={self.material}, "
                     f"diffuse={'yes' if self.diffuse is not None else 'no'}, "
                     f"{'coherent' if self.coherent else 'incoherent'}, depth_phase={self.depth_phase}, "
-                    f"crossings={self.crossings} ({t.crossing_count} pairs)]")
+                    f"crossings={self.crossings} ({t.crossing_count} pairs), "
+                    f"periodic families={self.grid.family_count}]")
 
     ScratchDiffraction.__name__ = "ScratchDiffraction"
     return ScratchDiffraction

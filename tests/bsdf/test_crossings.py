@@ -234,7 +234,7 @@ def test09_extreme_crossings_stay_finite():
     for wi in (shading.direction(89.9), shading.direction(0), shading.direction(45, 30)):
         f = shading.eval_brdf(bsdf, wi, wo)
         assert np.isfinite(f).all() and f.max() > 0
-    assert str(shading.load_bsdf([], crossings="height_field")).endswith("crossings=height_field (0 pairs)]")
+    assert "crossings=height_field (0 pairs)" in str(shading.load_bsdf([], crossings="height_field"))
 
 
 # ------------------------------------------------------ overlaps of three and more

@@ -13,15 +13,16 @@ import mitsuba as mi
 import numpy as np
 import pytest
 
-from scratch_iridescence.mitsuba_bridge.bsdf import periodic, plugin_dict, reference as ref, tables
+from scratch_iridescence.mitsuba_bridge.bsdf import periodic, reference as ref, tables
 from scratch_iridescence.mitsuba_bridge.bsdf.lookup import jacobian
 from scratch_iridescence.mitsuba_bridge.scratch import ScratchSet
 import shading
 
-#: The test grating (µm around x0): tracks at this pitch, each this long, cells of 50 µm (so that
-#: windows straddle cells) and σ = 2 µm >= the pitch.
+#: The test grating (µm around x0): tracks at this pitch, each this long, σ = 2 µm >= the pitch, and
+#: cells of 62.5 µm (1/16 UV, UNIT_SCALE being 1 mm per UV unit): dense enough cells for families,
+#: small enough that windows straddle cells.
 PITCH, TRACKS, HALF_LENGTH, SIGMA = 1.2, 81, 200.0, 2.0
-CELL_UV = 0.05  # 50 µm: UNIT_SCALE is 1 mm per UV unit
+CELL_UV = 1.0 / 16.0
 
 
 def grating(profile=ref.RECT, *, drop=(), wide=(), crossing=False, jitter=0.0, split=False, seed=0):
@@ -45,10 +46,7 @@ def grating(profile=ref.RECT, *, drop=(), wide=(), crossing=False, jitter=0.0, s
 
 
 def load(scratches, **kwargs):
-    description = plugin_dict(shading.scratch_set(scratches), coherence_diameter=6 * SIGMA * 1e-6,
-                              unit_scale=shading.UNIT_SCALE, material="none", **kwargs)
-    description["cell_size"] = CELL_UV
-    return mi.load_dict(description)
+    return shading.load_bsdf(scratches, sigma_um=SIGMA, cell_size=CELL_UV, **kwargs)
 
 
 def lanes(count, rng, *, x=(-150.0, 150.0), y=(-40.0, 40.0), shear=False):
@@ -98,6 +96,7 @@ def relative_l2(a, b):
 def test01_closed_form_equals_the_scan(profile, shear, split):
     bsdf = load(grating(profile, split=split))
     assert bsdf.model.grid.periodic
+    assert f"periodic families={bsdf.model.grid.family_count}]" in str(bsdf) and bsdf.model.grid.family_count >= 8
     rng = np.random.default_rng(1)
     count = 1 << 13
     si, _ = lanes(count, rng, shear=shear)
@@ -228,3 +227,11 @@ def test07_pieces_that_run_straight_on_are_joined():
                                                          depth=1e-7))[0]
     pieces = long.piece_count
     assert pieces > 1 and np.count_nonzero(long.continuation[:, 1]) == pieces - 1
+
+
+def test08_the_chi2_grating_of_test_sampling_is_a_family():
+    """``test_sampling``'s "periodic_grating" (chi² of sample against pdf) runs through the closed form."""
+    from test_sampling import make
+
+    bsdf, wi = make("periodic_grating")
+    assert eligible(bsdf, shading.interaction(16, wi)).all()

@@ -29,6 +29,9 @@ CONFIGS = {
     "ends_and_diffuse_base": ([ref.Scratch((-0.5, -0.3), (1.0, 0.6), 0.8, 0.2),
                                ref.Scratch((0.2, -1.0), (0.4, 3.0), 0.6, 0.25, ref.TRI)], 0.5, 50.0,
                               {"diffuse_reflectance": 0.3, "material": "Cu"}),
+    # a run of tracks summed in closed form (periodic family, docs/model.md §3.5): V-grooves, σ >= pitch
+    "periodic_grating": ([ref.Scratch((-30, y), (30, y), 0.3, 0.15, ref.TRI) for y in np.arange(-9.0, 9.01, 0.45)],
+                         0.5, 35.0, {"cell_size": 1.0 / 16.0}),
     "incoherent": ([ref.Scratch((-20, y), (20, y), 0.7, 0.2) for y in (-0.8, 0.5)], 0.5, 35.0, {"coherent": False}),
     # the normalisation of depth_phase="bounded" is at work (Kirchhoff albedo > 1 at 40°)
     "deep_bounded": ([ref.Scratch((-20, 0.2), (20, 0.2), 1.0, 1.0)], 0.5, 40.0, {"depth_phase": "bounded"}),
