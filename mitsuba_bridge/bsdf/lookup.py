@@ -79,7 +79,9 @@ class Grid:
         return self.family_frames is not None
 
     @classmethod
-    def upload(cls, tables: GridTables) -> "Grid":
+    def upload(cls, tables: GridTables, periodic: bool = True) -> "Grid":
+        """The tables as Dr.Jit arrays; ``periodic``: also find their periodic families (dense sets only;
+        a model that never sums them in closed form, e.g. the incoherent one, saves their build)."""
         bucketed = references_per_occupied_cell(tables.cell_start) > BUCKETED_ABOVE
         if bucketed:
             scan_frames, cell_bucket, bucket_start = offset_buckets(tables.cell_start, tables.offsets,
@@ -90,7 +92,7 @@ class Grid:
         rounding = max(tables.margin - CELL_DILATION, 0.0)
         families = periodic_families(tables.cell_start, tables.references, tables.segments, tables.cell_frames,
                                      tables.origin, tables.cell_size, tables.shape,
-                                     tables.continuation) if bucketed else None
+                                     tables.continuation) if bucketed and periodic else None
         return cls(
             segments=_owned(mi.Float, tables.segments.ravel()),
             references=_owned(mi.UInt32, tables.references),

@@ -85,12 +85,16 @@ class Model:
             q_d = zero
         return q_d, (1.0 - q_d) * share, (1.0 - q_d) * (1.0 - share)
 
-    def _family(self, jac, active):
-        """The periodic family of each lane's window (:mod:`.periodic`), or None where the set has none.
+    @staticmethod
+    def sums_families(coherent: bool, depth_phase: str) -> bool:
+        """Whether a model of these settings sums periodic families in closed form (:mod:`.periodic`):
+        coherent mode only (the incoherent sum of intensities has no such closed form), and not with the
+        "bounded" depth phase (its albedo terms are summed piece by piece)."""
+        return coherent and depth_phase != "bounded"
 
-        Coherent mode only (the incoherent sum of intensities has no such closed form), and not
-        with the "bounded" depth phase (its albedo terms are summed piece by piece)."""
-        if not (self.periodic and self.grid.periodic and self.coherent and self.depth_phase != "bounded"):
+    def _family(self, jac, active):
+        """The periodic family of each lane's window (:mod:`.periodic`), or None where none is used."""
+        if not (self.periodic and self.grid.periodic and self.sums_families(self.coherent, self.depth_phase)):
             return None
         return find_family(self.grid, jac, self.sigma, active)
 

@@ -24,13 +24,16 @@ missing or an extra track, or pieces that end irregularly gets no family
 there, and its queries scan as before.
 
 **Kernel** (:func:`find_family`, :func:`family_field`): a query uses a family
-when its window — 6σ across the tracks, 8σ along them (every track's ends
-then lie beyond the 6σ where the scan skips their end terms), both through
-the UV Jacobian — lies inside the family's rectangle and inside its cell
-(whose references are all the pieces the window can meet), and σ ≥ P there.
-Otherwise the lane scans (:func:`.lookup.for_each_segment`).  The closed form
-is the exact sum over the infinite run; the scan drops tracks beyond 4σ
-(e^-8 of the window), so the two differ by that truncation (tests/bsdf/test_periodic.py).
+when its window's box (4σ, the scan's window radius, through the UV
+Jacobian) reaches no lattice position beyond the first or last track of the
+family in any cell it touches — at most 2 × 2 cells, each holding the same
+run (direction, pitch, groove, offsets a whole number of pitches apart) —
+when every track runs 8σ past x0 along the tracks (so its ends lie beyond
+the 6σ where the scan skips their terms), and when σ ≥ P.  Otherwise the
+lane scans (:func:`.lookup.for_each_segment`) and gets the scan's values bit
+for bit.  The closed form is the exact sum over the infinite run; the scan
+drops tracks beyond 4σ (e^-8 of the window), so the two differ by that
+truncation, ~1e-4 (tests/bsdf/test_periodic.py).
 Units as everywhere in the kernels: µm, 1/µm.
 """
 from __future__ import annotations
@@ -67,7 +70,7 @@ TILING_TOLERANCE = 1e-6
 #: Offsets closer than this (cells) are the same track: pieces of one measure it along their own float32
 #: directions (~1e-7 per cell of distance), while n tracks across a cell lie ~1/n cell apart (n: hundreds).
 SAME_TRACK = 1e-5
-#: Window reach (σ) across the tracks that must lie inside the family's tracks and inside its cell: the
+#: Window reach (σ) across the tracks that must lie among the family's tracks: the
 #: scan's window radius (model.WINDOW_RADIUS_SIGMAS); what lies beyond, the scan drops too (e^-8).
 ACROSS_SIGMAS = 4.0
 #: ... and along the tracks inside its rectangle: every track's ends then lie more than 6σ from x0's
@@ -215,7 +218,7 @@ def _family(slot, member, t_f, other, local, a, e, t, runs_on, piece, width, dep
     hi_on = hi + np.where(forward, after, before)
     del tx, ty, s0, s1, forward, before, after
     # sort by (cell, offset): references come sorted by cell and, within one, nearly by offset
-    key = c * 8.0 + offset  # offsets of lines through a cell lie within (-2, 3) cells
+    key = c * 8.0 + offset  # offsets of lines through a (dilated) cell lie within (-1.5, 1.5) cells
     unsorted = np.flatnonzero(key[1:] < key[:-1])
     if len(unsorted):
         order = np.argsort(key, kind="stable")

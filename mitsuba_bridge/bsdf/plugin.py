@@ -235,7 +235,7 @@ def _make_class() -> type:
                                              crossings=self._height_field)
             self.tables = self.table_cache.tables
             self.scratch_count = scratches.count
-            self.grid = Grid.upload(self.tables)
+            self.grid = Grid.upload(self.tables, periodic=Model.sums_families(self.coherent, self.depth_phase))
             self._rebuild_model()
 
         @property

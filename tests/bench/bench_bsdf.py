@@ -13,8 +13,10 @@ Dense sets (issue 12): ``--dense`` adds the time per query on the paper's CD
 ``bench_bsdf_memory.py``) and on the Fig. 9 grating (1 600 grooves of 7 cm at a
 2.5 µm pitch), at shading points spread over the tracks/bands in every
 orientation, as wall time per lane (all cores) and as a ratio to
-``roughconductor.eval`` measured in the same run (the machine is shared), and the time of the search
-alone (the fold over the pieces in the window with a body that only counts them).
+``roughconductor.eval`` measured in the same run (the machine is shared), the time of the search
+alone (the fold over the pieces in the window with a body that only counts them), the share of
+lanes whose window lies in a periodic family (summed in closed form, no search: docs/model.md §3.5)
+and ``eval`` with the families switched off (``Model.periodic = False``: every lane scans).
 
 Crossings (issue 12 item 1): ``--crossings`` times ``eval`` with ``crossings =
 "additive"`` and ``"height_field"`` on the Fig. 7(b) plate (3 000 scratches,
@@ -159,6 +161,7 @@ def dense_sets(args, rng):
     from scratch_iridescence.mitsuba_bridge import bsdf as scratch_bsdf
     from scratch_iridescence.mitsuba_bridge.bsdf.lookup import for_each_segment, jacobian
     from scratch_iridescence.mitsuba_bridge.bsdf.model import WINDOW_RADIUS_SIGMAS
+    from scratch_iridescence.mitsuba_bridge.bsdf.periodic import find_family
     from scratch_iridescence.mitsuba_bridge.scratch import ScratchSet
 
     sys.path.insert(0, str(Path(__file__).parent))
@@ -192,7 +195,14 @@ def dense_sets(args, rng):
                                     (dr.zeros(mi.UInt32, n),), lambda segment, piece, state: (state[0] + 1,),
                                     mi.Bool(True))[0]
 
-        calls = (lambda: bsdf.eval(ctx, si, wo), lambda: rough.eval(ctx, si, wo), search)
+        def scanned():
+            model.periodic = False
+            try:
+                return bsdf.eval(ctx, si, wo)
+            finally:
+                model.periodic = True
+
+        calls = (lambda: bsdf.eval(ctx, si, wo), lambda: rough.eval(ctx, si, wo), search, scanned)
         best = [float("inf")] * len(calls)
         for i in range(args.repeat + 1):
             for k, call in enumerate(calls):
@@ -202,7 +212,12 @@ def dense_sets(args, rng):
                 if i:
                     best[k] = min(best[k], time.perf_counter() - start)
         pieces = float(np.mean(np.asarray(search())))
-        return best[0] / n, best[1] / n, best[2] / n, pieces
+        if model.grid.periodic:
+            family = find_family(model.grid, jacobian(si, model.micrometres_per_unit), model.sigma, True)
+            closed = float(np.mean(np.asarray(family.eligible)))
+        else:
+            closed = 0.0
+        return best[0] / n, best[1] / n, best[2] / n, pieces, closed, best[3] / n
 
     # the CD: points on the program area, every track orientation
     radius = rng.uniform(23e-3, 57e-3, n) / DISC_M
@@ -227,9 +242,10 @@ def dense_sets(args, rng):
 
     print(f"time per eval query (wall per lane, {os.cpu_count()} cores, {n} lanes, best of {args.repeat}; "
           "roughconductor.eval on the same lanes, measured alternately):")
-    for name, (query, reference, search, pieces) in (("CD", cd_times), ("grating", grating_times)):
+    for name, (query, reference, search, pieces, closed, scanned) in (("CD", cd_times), ("grating", grating_times)):
         print(f"  {name:8s} {query * 1e9:8.0f} ns  = {query / reference:6.1f} x roughconductor.eval "
-              f"({reference * 1e9:.1f} ns); the search alone {search * 1e9:.0f} ns for {pieces:.1f} pieces")
+              f"({reference * 1e9:.1f} ns); {closed:.1%} of the lanes in a periodic family; every lane "
+              f"scanning {scanned * 1e9:.0f} ns, the search alone {search * 1e9:.0f} ns for {pieces:.1f} pieces")
 
 
 def crossing_sets(args, rng):
