@@ -49,16 +49,18 @@ def load(scratches, **kwargs):
     return shading.load_bsdf(scratches, sigma_um=SIGMA, cell_size=CELL_UV, **kwargs)
 
 
-def lanes(count, rng, *, x=(-150.0, 150.0), y=(-40.0, 40.0), shear=False):
-    """Shading points (µm around x0), random ω_i and wavelengths; a sheared, scaled UV map if asked."""
+#: UV maps of the test surface (dp_du, dp_dv): plain, sheared and scaled, mirrored (negative determinant).
+UV_MAPS = {"plain": ((1, 0, 0), (0, 1, 0)), "shear": ((1.0, 0.3, 0), (-0.2, 0.8, 0)),
+           "mirror": ((-0.9, 0.1, 0), (0.2, 1.1, 0))}
+
+
+def lanes(count, rng, *, x=(-150.0, 150.0), y=(-40.0, 40.0), uv_map="plain"):
+    """Shading points (µm around x0), random ω_i and wavelengths, on one of the ``UV_MAPS``."""
     points = np.stack([rng.uniform(*x, count), rng.uniform(*y, count)], axis=1)
     uv = shading.to_uv(points)
     si = dr.zeros(mi.SurfaceInteraction3f, count)
     si.uv = mi.Point2f(shading.floats(uv[:, 0]), shading.floats(uv[:, 1]))
-    if shear:
-        si.dp_du, si.dp_dv = mi.Vector3f(1.0, 0.3, 0), mi.Vector3f(-0.2, 0.8, 0)
-    else:
-        si.dp_du, si.dp_dv = mi.Vector3f(1, 0, 0), mi.Vector3f(0, 1, 0)
+    si.dp_du, si.dp_dv = (mi.Vector3f(*axis) for axis in UV_MAPS[uv_map])
     si.n = mi.Normal3f(0, 0, 1)
     si.sh_frame = mi.Frame3f(mi.Vector3f(0, 0, 1))
     si.wi = mi.warp.square_to_cosine_hemisphere(mi.Point2f(shading.floats(rng.random(count)),
@@ -91,15 +93,16 @@ def relative_l2(a, b):
     return np.linalg.norm(a - b) / np.linalg.norm(b)
 
 
-@pytest.mark.parametrize("profile,shear,split", [(ref.RECT, False, False), (ref.TRI, False, False),
-                                                 (ref.RECT, True, True), (ref.TRI, True, False)])
-def test01_closed_form_equals_the_scan(profile, shear, split):
+@pytest.mark.parametrize("profile,uv_map,split", [(ref.RECT, "plain", False), (ref.TRI, "plain", False),
+                                                  (ref.RECT, "shear", True), (ref.TRI, "shear", False),
+                                                  (ref.TRI, "mirror", True)])
+def test01_closed_form_equals_the_scan(profile, uv_map, split):
     bsdf = load(grating(profile, split=split))
     assert bsdf.model.grid.periodic
     assert f"periodic families={bsdf.model.grid.family_count}]" in str(bsdf) and bsdf.model.grid.family_count >= 8
     rng = np.random.default_rng(1)
     count = 1 << 13
-    si, _ = lanes(count, rng, shear=shear)
+    si, _ = lanes(count, rng, uv_map=uv_map)
     wo = mi.warp.square_to_cosine_hemisphere(mi.Point2f(shading.floats(rng.random(count)),
                                                         shading.floats(rng.random(count))))
     inside = eligible(bsdf, si)
@@ -235,3 +238,17 @@ def test08_the_chi2_grating_of_test_sampling_is_a_family():
 
     bsdf, wi = make("periodic_grating")
     assert eligible(bsdf, shading.interaction(16, wi)).all()
+
+
+def test09_degenerate_shading_points_use_no_family():
+    """NaN or infinite UVs, a zero and a huge UV Jacobian: no family, finite values."""
+    bsdf = load(grating())
+    count = 4
+    si = shading.interaction(count, shading.direction(30.0))
+    x0 = np.asarray(shading.X0_UV, np.float64)
+    si.uv = mi.Point2f(shading.floats([np.nan, np.inf, x0[0], x0[0]]), shading.floats([x0[1]] * count))
+    scale = shading.floats([1.0, 1.0, 0.0, 1e9])
+    si.dp_du, si.dp_dv = mi.Vector3f(scale, 0, 0), mi.Vector3f(0, scale, 0)
+    assert not eligible(bsdf, si).any()
+    value = np.asarray(bsdf.eval(mi.BSDFContext(), si, shading.vector([(0.2, 0.1, 0.97)] * count)))
+    assert np.isfinite(value).all()
