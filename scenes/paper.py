@@ -96,7 +96,9 @@ def _scratch_statistics(bpy) -> dict:
         data = storage.raw_scratch_bytes(obj)
         began = time.perf_counter()
         scratches = scratch.loads(data)
-        loaded = bsdf.load(scratches, unit_scale=1.0)
+        settings = obj.scratch_iridescence  # as the render loads it (the mode decides what is built)
+        loaded = bsdf.load(scratches, unit_scale=1.0, coherent=bool(settings.coherent),
+                           depth_phase=settings.depth_phase, crossings=settings.crossings)
         load_s += time.perf_counter() - began
         del loaded
         count += scratches.count
