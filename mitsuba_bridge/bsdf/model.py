@@ -35,6 +35,8 @@ WINDOW_RADIUS_SIGMAS = 4.0
 MAX_SCRATCH_SHARE = 0.9
 #: Shortest wavelength accepted (µm); guards hand-made interactions with zeroed wavelengths.
 MIN_WAVELENGTH_UM = 0.01
+#: ``Model.evaluate(family=FIND)``: look the periodic family up (the default).
+FIND = object()
 
 
 @dataclass
@@ -117,11 +119,13 @@ class Model:
 
     # --------------------------------------------------------- evaluation
     def evaluate(self, si, wo, *, has_glossy=True, has_diffuse=True, want_value=True, want_pdf=True,
-                 active=True, pieces_in_window=True):
+                 active=True, pieces_in_window=True, family=FIND):
         """``(f_r cos θ_o, pdf)`` (either may be ``None`` when not wanted).
 
         ``pieces_in_window`` (mask): False where the caller knows that no piece lies in the window
-        (:meth:`sample` has just looked): the search for them is then skipped."""
+        (:meth:`sample` has just looked): the search for them is then skipped.  ``family``: the
+        periodic family of each lane's window when the caller has found it (:meth:`sample`; None:
+        none is used), else it is looked up here."""
         wi = si.wi
         active = mi.Bool(active) & (wi.z > 0.0) & (wo.z > 0.0)
         wavelength, jac = self._hero(si)
@@ -147,8 +151,9 @@ class Model:
         field = (lobe, zero_s) if coherent else (zero_s, zero_f)
         energy0 = density0 = zero_f
         scanning = active & has_glossy & pieces_in_window
-        family = self._family(jac, active & has_glossy) if has_glossy else None
-        if family is not None:  # lanes inside a periodic family: its closed form, no search
+        if family is FIND:
+            family = self._family(jac, active & has_glossy) if has_glossy else None
+        if family is not None and has_glossy:  # lanes inside a periodic family: its closed form, no search
             inside = family.eligible
             scanning &= ~inside
             if want_value:  # (whole SIMD packets outside every family skip it)
@@ -322,7 +327,7 @@ class Model:
 
         # the same window as above: where it held no piece, the evaluation need not search again
         value, pdf = self.evaluate(si, wo, has_glossy=has_glossy, has_diffuse=has_diffuse, active=active,
-                                   pieces_in_window=found)
+                                   pieces_in_window=found, family=family)
         return wo, pdf, value, diffuse
 
 

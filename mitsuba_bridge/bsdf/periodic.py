@@ -76,8 +76,10 @@ ACROSS_SIGMAS = 4.0
 #: ... and along the tracks inside its rectangle: every track's ends then lie more than 6σ from x0's
 #: foot point on it (√(8² - 4²) > 6), where the scan skips their end terms (window.END_NEGLIGIBLE_SIGMAS).
 ALONG_SIGMAS = 8.0
-#: Smallest σ/P for the three-order sum (the fourth order is then below e^-44 of the nearest).
+#: Smallest σ/P for the three-order sum (the fourth order is then below e^-44 of the nearest) ...
 MIN_SIGMA_PER_PITCH = 1.0
+#: ... and from which the nearest order alone does (the next lies 0.5/P > 0.9/σ away: below e^-16).
+ONE_ORDER_SIGMA_PER_PITCH = 1.8
 #: Cells whose pieces spread more than this across their dominant direction hold no family (a CD's
 #: chords turn by 2.5°, spreading 0.02 cells; pieces in all directions spread about a cell).
 MAX_SPREAD_CELLS = 0.1
@@ -410,12 +412,19 @@ def find_family(grid, jac, sigma, active) -> Family:
                     & (dr.abs(other.pitch - own.pitch) < PITCH_TOLERANCE_KERNEL * own.pitch)
                     & (other.width == own.width) & (other.depth == own.depth))
 
-        for cu, cv in ((u0, v0), (u1, v0), (u0, v1), (u1, v1)):
-            wanted = eligible & ((cu != u) | (cv != v))
-            a = slot(cu, cv, 0, wanted)
-            matched = continues(a)
-            b = slot(cu, cv, 1, wanted & ~matched)
-            eligible &= ~wanted | matched | continues(b)
+        def neighbours(eligible):
+            for cu, cv in ((u0, v0), (u1, v0), (u0, v1), (u1, v1)):
+                wanted = eligible & ((cu != u) | (cv != v))
+                a = slot(cu, cv, 0, wanted)
+                matched = continues(a)
+                b = slot(cu, cv, 1, wanted & ~matched)
+                eligible = eligible & (~wanted | matched | continues(b))
+            return (eligible,)
+
+        # (whole SIMD packets whose boxes stay in their own cells skip this)
+        leaves = eligible & ((u0 != u1) | (v0 != v1))
+        eligible = dr.if_stmt((eligible,), leaves, neighbours, lambda eligible: (eligible,),
+                              label="scratch_family_neighbours")[0]
 
         offset = own.offset - own.pitch * dr.round(own.offset * inv_pitch)
         # the tracks' direction in the local frame: J t, t = (n_v, -n_u)
@@ -439,25 +448,33 @@ def _sinc(x):
 
 
 def groove_transform(family: Family, mu, kappa) -> Cx:
-    """``G(μ) = ∫ (e^{iκp(v)} - 1) e^{2πiμv} dv`` over one groove (µm), per wavelength."""
+    """``G(μ) = ∫ (e^{iκp(v)} - 1) e^{2πiμv} dv`` over one groove (µm), per wavelength; the V-groove's
+    facets cost only in SIMD packets that hold one."""
     width = family.width
-    box = width * _sinc(math.pi * mu * width)
-    flat = (expi(kappa) - 1.0) * box
+    kind = type(mu)  # (the branches' arithmetic may widen the type; both must return the same one)
 
-    def v_groove():  # two facets of phase κ ± (2κ/W) v, less the box
+    def flat(mu, kappa):
+        g = (expi(kappa) - 1.0) * (width * _sinc(math.pi * mu * width))
+        return kind(g.re), kind(g.im)
+
+    def v_groove(mu, kappa):  # two facets of phase κ ± (2κ/W) v, less the box
         quarter = 0.25 * width
         plus = (2.0 * math.pi) * mu + 2.0 * kappa / width
         minus = (2.0 * math.pi) * mu - 2.0 * kappa / width
-        facets = expi(kappa - plus * quarter) * _sinc(plus * quarter) + expi(kappa + minus * quarter) * _sinc(
-            minus * quarter)
-        return facets * (0.5 * width) - box
+        facets = (expi(kappa - plus * quarter) * _sinc(plus * quarter)
+                  + expi(kappa + minus * quarter) * _sinc(minus * quarter))
+        g = facets * (0.5 * width) - width * _sinc(math.pi * mu * width)
+        return kind(g.re), kind(g.im)
 
-    v = v_groove()
-    return Cx(dr.select(family.triangular, v.re, flat.re), dr.select(family.triangular, v.im, flat.im))
+    re, im = dr.if_stmt((mu, kappa), family.triangular, v_groove, flat, label="scratch_family_groove")
+    return Cx(re, im)
 
 
 def family_field(family: Family, xi_x, xi_y, k_z, sigma) -> Cx:
-    """``Σ_n S_n(ξ)`` over the family's infinite run (module docstring), per wavelength."""
+    """``Σ_n S_n(ξ)`` over the family's infinite run (module docstring), per wavelength.
+
+    The order nearest to -ν⊥P, and its two neighbours where σ < ``ONE_ORDER_SIGMA_PER_PITCH`` P
+    (beyond, they lie more than 0.9/σ away: below e^-16 of the window's peak)."""
     nu_par = xi_x * family.dx + xi_y * family.dy
     nu_perp = xi_y * family.dx - xi_x * family.dy
     kappa = k_z * family.depth
@@ -466,14 +483,23 @@ def family_field(family: Family, xi_x, xi_y, k_z, sigma) -> Cx:
     along = gauss * dr.exp((-2.0 * math.pi ** 2) * sigma2 * nu_par * nu_par)
     inv_pitch = dr.rcp(family.pitch)
     nearest = dr.round(-nu_perp * family.pitch)
-    total = Cx(dr.zeros(type(nu_perp)), dr.zeros(type(nu_perp)))
-    for m in (-1.0, 0.0, 1.0):
-        order = nearest + m
+
+    def order_term(order):
         mu = order * inv_pitch
         eta = nu_perp + mu
         window = gauss * dr.exp((-2.0 * math.pi ** 2) * sigma2 * eta * eta)
         phase = expi((2.0 * math.pi) * order * family.a0 * inv_pitch)
-        total = total + groove_transform(family, mu, kappa) * phase * window
+        return groove_transform(family, mu, kappa) * phase * window
+
+    def neighbours(nearest):
+        both = order_term(nearest - 1.0) + order_term(nearest + 1.0)
+        return type(nearest)(both.re), type(nearest)(both.im)
+
+    def none(nearest):
+        return dr.zeros(type(nearest)), dr.zeros(type(nearest))
+
+    wide = sigma < ONE_ORDER_SIGMA_PER_PITCH * family.pitch
+    total = order_term(nearest) + Cx(*dr.if_stmt((nearest,), wide, neighbours, none, label="scratch_family_orders"))
     return total * (along * inv_pitch)
 
 
