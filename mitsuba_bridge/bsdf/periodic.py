@@ -28,8 +28,8 @@ when its window's box (4σ, the scan's window radius, through the UV
 Jacobian) reaches no lattice position beyond the first or last track of the
 family in any cell it touches — at most 2 × 2 cells, each holding the same
 run (direction, pitch, groove, offsets a whole number of pitches apart) —
-when every track runs 8σ past x0 along the tracks (so its ends lie beyond
-the 6σ where the scan skips their terms), and when σ ≥ P.  Otherwise the
+when no track ends within 7.2σ of x0 (so every end lies beyond the 6σ
+where the scan skips its term), and when σ ≥ P.  Otherwise the
 lane scans (:func:`.lookup.for_each_segment`) and gets the scan's values bit
 for bit.  The closed form is the exact sum over the infinite run; the scan
 drops tracks beyond 4σ (e^-8 of the window), so the two differ by that
@@ -73,9 +73,10 @@ SAME_TRACK = 1e-5
 #: Window reach (σ) across the tracks that must lie among the family's tracks: the
 #: scan's window radius (model.WINDOW_RADIUS_SIGMAS); what lies beyond, the scan drops too (e^-8).
 ACROSS_SIGMAS = 4.0
-#: ... and along the tracks inside its rectangle: every track's ends then lie more than 6σ from x0's
-#: foot point on it (√(8² - 4²) > 6), where the scan skips their end terms (window.END_NEGLIGIBLE_SIGMAS).
-ALONG_SIGMAS = 8.0
+#: ... and along the tracks inside its rectangle: every end lying outside the ball of this radius around
+#: x0, it lies more than 6σ from x0's foot point on any track within 4σ (√(6² + 4²) = 7.21), where the
+#: scan skips the end's term (window.END_NEGLIGIBLE_SIGMAS).
+ALONG_SIGMAS = math.sqrt(6.0 ** 2 + 4.0 ** 2) * 1.001
 #: Smallest σ/P for the three-order sum (the fourth order is then below e^-44 of the nearest) ...
 MIN_SIGMA_PER_PITCH = 1.0
 #: ... and from which the nearest order alone does (the next lies 0.5/P > 0.9/σ away: below e^-16).

@@ -116,7 +116,7 @@ def test01_closed_form_equals_the_scan(profile, uv_map, split):
 
 
 def test02_windows_near_the_last_track_or_the_ends_scan():
-    """The family is used only where the window (4σ across, 8σ along) lies among its tracks."""
+    """The family is used only where the window (4σ) lies among its tracks and no end lies within 7.2σ."""
     bsdf = load(grating())
     edge = (TRACKS // 2) * PITCH  # the outermost track's offset
     points = np.array([[0.0, 0.0], [-120.0, 10.0],  # inside
