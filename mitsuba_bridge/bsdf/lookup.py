@@ -28,7 +28,8 @@ from .periodic import periodic_families
 from .segment import SegmentGeometry
 from .tables import CELL_DILATION, GridTables, aligned, empty_aligned
 
-__all__ = ["Grid", "LocalJacobian", "offset_buckets", "for_each_segment", "for_each_crossing", "jacobian", "segment_at"]
+__all__ = ["Grid", "LocalJacobian", "offset_buckets", "for_each_segment", "replay_pieces", "for_each_crossing", "jacobian",
+           "segment_at"]
 
 #: References per offset bucket (a query scans half a bucket below its window on average).
 BUCKET_REFERENCES = 4
@@ -330,6 +331,23 @@ def _cell_scan(grid: Grid, jac: LocalJacobian, u, v, gu, gv, scale, extent_u, ex
     k = mi.Int32(dr.floor(dr.clip((lowest_pieces - frame.z) * frame.w, 0.0, mi.Float(last_bucket))))
     first = dr.gather(mi.UInt32, grid.bucket_start, bucket0 + mi.UInt32(k), active)
     return first, end, hi_key
+
+
+def replay_pieces(grid: Grid, jac: LocalJacobian, count, pieces: tuple, state: tuple, body: Callable,
+                  active) -> tuple:
+    """Fold ``body`` (as in :func:`for_each_segment`) over ``pieces[:count]`` of each lane, in order.
+
+    For lanes where an earlier :func:`for_each_segment` over the same window found ``count <=
+    len(pieces)`` pieces and kept them in the order found: the fold then adds them in the same order,
+    so its result equals a new search's bit for bit, without the search."""
+    def step(index, user):
+        piece = pieces[-1]
+        for k in range(len(pieces) - 2, -1, -1):
+            piece = dr.select(index == k, pieces[k], piece)
+        return index + 1, body(segment_at(grid, jac, piece, True), piece, user)
+
+    return dr.while_loop((dr.zeros(mi.UInt32), state), lambda index, user: active & (index < count), step,
+                         label="scratch_replay")[1]
 
 
 def for_each_crossing(grid: Grid, jac: LocalJacobian, piece, segment: SegmentGeometry, radius, state: tuple,

@@ -20,7 +20,7 @@ from . import sampling
 from .complexmath import Cx
 from .energy import albedo_excess
 from .fresnel import fresnel_conductor
-from .lookup import Grid, for_each_crossing, for_each_segment, jacobian, segment_at
+from .lookup import Grid, for_each_crossing, for_each_segment, jacobian, replay_pieces, segment_at
 from .overlap import crossing_correction
 from .periodic import family_energy, family_field, find_family
 from .segment import SegmentGeometry, amplitude, frequencies
@@ -37,6 +37,8 @@ MAX_SCRATCH_SHARE = 0.9
 MIN_WAVELENGTH_UM = 0.01
 #: ``Model.evaluate(family=FIND)``: look the periodic family up (the default).
 FIND = object()
+#: Pieces that :meth:`Model.sample`'s first pass keeps for its evaluation to replay (sparse sets find 0-2).
+REPLAY_PIECES = 4
 
 
 @dataclass
@@ -119,13 +121,15 @@ class Model:
 
     # --------------------------------------------------------- evaluation
     def evaluate(self, si, wo, *, has_glossy=True, has_diffuse=True, want_value=True, want_pdf=True,
-                 active=True, pieces_in_window=True, family=FIND):
+                 active=True, pieces_in_window=True, family=FIND, found=None):
         """``(f_r cos θ_o, pdf)`` (either may be ``None`` when not wanted).
 
         ``pieces_in_window`` (mask): False where the caller knows that no piece lies in the window
         (:meth:`sample` has just looked): the search for them is then skipped.  ``family``: the
         periodic family of each lane's window when the caller has found it (:meth:`sample`; None:
-        none is used), else it is looked up here."""
+        none is used), else it is looked up here.  ``found``: ``(count, pieces)`` of a search of the
+        same window, the first ``REPLAY_PIECES`` pieces in the order it found them: lanes with that
+        many or fewer replay them instead of searching (the same sums, bit for bit)."""
         wi = si.wi
         active = mi.Bool(active) & (wi.z > 0.0) & (wo.z > 0.0)
         wavelength, jac = self._hero(si)
@@ -196,9 +200,14 @@ class Model:
             return (a, b), energy, density, excess
 
         # (the excess sums join the loop state only when they are used: no cost for the other phases)
-        (a, b), energy, density, excess = for_each_segment(
-            self.grid, jac, WINDOW_RADIUS_SIGMAS * sigma, (field, energy0, density0, (zero_s, zero_s) if bounded else ()),
-            body, scanning)
+        state = (field, energy0, density0, (zero_s, zero_s) if bounded else ())
+        if found is not None:
+            count, kept = found
+            replaying = scanning & (count <= REPLAY_PIECES)
+            scanning &= ~replaying
+            state = replay_pieces(self.grid, jac, count, kept, state, body, replaying)
+        (a, b), energy, density, excess = for_each_segment(self.grid, jac, WINDOW_RADIUS_SIGMAS * sigma, state,
+                                                           body, scanning)
 
         value = pdf = None
         if want_value:
@@ -276,15 +285,18 @@ class Model:
         kz0 = (4.0 * math.pi) * wi.z / lam0
 
         # ---- one pass: total scratch energy and a segment drawn in proportion (reservoir)
+        # (it also keeps the first REPLAY_PIECES pieces it finds: the evaluation below replays them in the
+        # same order instead of searching again, with the same result bit for bit)
         def body(segment, piece, state):
-            energy, chosen, u, found = state
+            energy, chosen, u, count, kept = state
             weight = sampling.selection_weight(segment, kz0 * segment.depth, sigma, self.coherent)
             energy = energy + weight
             p = dr.select(energy > 0.0, weight / energy, 0.0)
             pick = u < p
             chosen = dr.select(pick, piece, chosen)
             u = dr.select(pick, u / dr.maximum(p, 1e-30), (u - p) / dr.maximum(1.0 - p, 1e-30))
-            return energy, chosen, dr.clip(u, 0.0, 0.99999994), mi.Bool(True)
+            kept = tuple(dr.select(count == k, piece, kept[k]) for k in range(REPLAY_PIECES))
+            return energy, chosen, dr.clip(u, 0.0, 0.99999994), count + 1, kept
 
         energy0, chosen0, scanning = dr.zeros(mi.Float), dr.zeros(mi.UInt32), active & has_glossy
         family = self._family(jac, active & has_glossy) if has_glossy else None
@@ -292,9 +304,10 @@ class Model:
             energy0 = self._family_weight(family, kz0)
             chosen0 = dr.select(family.eligible, family.piece, chosen0)
             scanning &= ~family.eligible
-        energy, chosen, u, found = for_each_segment(
+        no_pieces = tuple(dr.zeros(mi.UInt32) for _ in range(REPLAY_PIECES))
+        energy, chosen, u, count, kept = for_each_segment(
             self.grid, jac, WINDOW_RADIUS_SIGMAS * sigma,
-            (energy0, chosen0, mi.Float(sample1), dr.zeros(mi.Bool)), body, scanning)
+            (energy0, chosen0, mi.Float(sample1), dr.zeros(mi.UInt32), no_pieces), body, scanning)
 
         # ---- strategy from the left-over uniform (independent of the segment drawn)
         q_d, q_s, q_m = self._strategy_weights(si, energy, wi.z, has_glossy, has_diffuse, active)
@@ -325,9 +338,10 @@ class Model:
         wo = dr.select(diffuse, mi.warp.square_to_cosine_hemisphere(sample2), specular)
         active &= diffuse | (sin2 < 1.0)
 
-        # the same window as above: where it held no piece, the evaluation need not search again
+        # the same window as above: where it held no piece, the evaluation need not search again, and
+        # where it held a few, it replays them
         value, pdf = self.evaluate(si, wo, has_glossy=has_glossy, has_diffuse=has_diffuse, active=active,
-                                   pieces_in_window=found, family=family)
+                                   pieces_in_window=count > 0, family=family, found=(count, kept))
         return wo, pdf, value, diffuse
 
 

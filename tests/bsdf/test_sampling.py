@@ -127,3 +127,31 @@ def test04_sample_skips_the_second_search_only_where_the_window_is_empty():
     assert 0.2 < scratched.mean() < 0.8  # both kinds of lanes
     np.testing.assert_allclose(bs_pdf[valid], pdf[valid], rtol=1e-4)
     np.testing.assert_allclose(weight[:, valid], value[:, valid] / pdf[valid], rtol=1e-4, atol=1e-7)
+
+
+def test05_sample_replays_the_pieces_of_its_first_pass_bit_for_bit():
+    """``sample`` keeps the first ``REPLAY_PIECES`` pieces its first pass finds and evaluates its direction
+    by replaying them in that order: value and pdf equal a fresh evaluation's exactly, on lanes whose
+    windows hold from 0 to 7 pieces (more than it keeps: those search again)."""
+    from scratch_iridescence.mitsuba_bridge.bsdf.model import REPLAY_PIECES
+
+    # a fan of 7 scratches through the origin: the window (2 µm) holds all 7 near it, fewer farther out
+    scratches = [ref.Scratch((-20 * np.cos(t), -20 * np.sin(t)), (20 * np.cos(t), 20 * np.sin(t)), 0.3, 0.2,
+                             ref.TRI if k % 2 else ref.RECT)
+                 for k, t in enumerate(np.linspace(0.1, 3.0, 7))]
+    model = shading.load_bsdf(scratches, sigma_um=0.5).model
+    count = 20000
+    rng = np.random.default_rng(11)
+    uv = shading.to_uv(rng.uniform(-15.0, 15.0, (count, 2)))
+    si = shading.interaction(count, shading.direction(35.0, 25.0), WAVELENGTHS, uv=(uv[:, 0], uv[:, 1]))
+    wo, pdf, value, _ = model.sample(si, shading.floats(rng.random(count)),
+                                     mi.Point2f(shading.floats(rng.random(count)), shading.floats(rng.random(count))))
+    fresh_value, fresh_pdf = model.evaluate(si, wo)
+    np.testing.assert_array_equal(np.asarray(value), np.asarray(fresh_value))
+    np.testing.assert_array_equal(np.asarray(pdf), np.asarray(fresh_pdf))
+    # lanes of every kind: no piece, some replayed, more than kept (searched again)
+    from scratch_iridescence.mitsuba_bridge.bsdf.lookup import for_each_segment, jacobian
+    pieces = np.asarray(for_each_segment(model.grid, jacobian(si, model.micrometres_per_unit), 4 * model.sigma,
+                                         (dr.zeros(mi.UInt32, count),), lambda s, p, state: (state[0] + 1,),
+                                         mi.Bool(True))[0])
+    assert (pieces == 0).any() and ((pieces > 0) & (pieces <= REPLAY_PIECES)).any() and (pieces > REPLAY_PIECES).any()
