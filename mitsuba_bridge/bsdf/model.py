@@ -286,7 +286,12 @@ class Model:
 
         # ---- one pass: total scratch energy and a segment drawn in proportion (reservoir)
         # (it also keeps the first REPLAY_PIECES pieces it finds: the evaluation below replays them in the
-        # same order instead of searching again, with the same result bit for bit)
+        # same order instead of searching again, with the same result bit for bit; not with the height
+        # field: its body, traced once more for the replay, doubled the kernel's compile time, 12.7 → 20.7 s
+        # on Fig. 17, for no faster passes)
+        replays = not (self.height_field and self.coherent)
+        kept_count = REPLAY_PIECES if replays else 0
+
         def body(segment, piece, state):
             energy, chosen, u, count, kept = state
             weight = sampling.selection_weight(segment, kz0 * segment.depth, sigma, self.coherent)
@@ -295,7 +300,7 @@ class Model:
             pick = u < p
             chosen = dr.select(pick, piece, chosen)
             u = dr.select(pick, u / dr.maximum(p, 1e-30), (u - p) / dr.maximum(1.0 - p, 1e-30))
-            kept = tuple(dr.select(count == k, piece, kept[k]) for k in range(REPLAY_PIECES))
+            kept = tuple(dr.select(count == k, piece, kept[k]) for k in range(kept_count))
             return energy, chosen, dr.clip(u, 0.0, 0.99999994), count + 1, kept
 
         energy0, chosen0, scanning = dr.zeros(mi.Float), dr.zeros(mi.UInt32), active & has_glossy
@@ -304,7 +309,7 @@ class Model:
             energy0 = self._family_weight(family, kz0)
             chosen0 = dr.select(family.eligible, family.piece, chosen0)
             scanning &= ~family.eligible
-        no_pieces = tuple(dr.zeros(mi.UInt32) for _ in range(REPLAY_PIECES))
+        no_pieces = tuple(dr.zeros(mi.UInt32) for _ in range(kept_count))
         energy, chosen, u, count, kept = for_each_segment(
             self.grid, jac, WINDOW_RADIUS_SIGMAS * sigma,
             (energy0, chosen0, mi.Float(sample1), dr.zeros(mi.UInt32), no_pieces), body, scanning)
@@ -339,11 +344,10 @@ class Model:
         active &= diffuse | (sin2 < 1.0)
 
         # the same window as above: where it held no piece, the evaluation need not search again, and
-        # where it held a few, it replays them (not with the height field: its body, traced once more for
-        # the replay, doubled the kernel's compile time, 12.7 → 20.7 s on Fig. 17, for no faster passes)
-        replay = None if self.height_field and self.coherent else (count, kept)
+        # where it held a few, it replays them
         value, pdf = self.evaluate(si, wo, has_glossy=has_glossy, has_diffuse=has_diffuse, active=active,
-                                   pieces_in_window=count > 0, family=family, found=replay)
+                                   pieces_in_window=count > 0, family=family,
+                                   found=(count, kept) if replays else None)
         return wo, pdf, value, diffuse
 
 
