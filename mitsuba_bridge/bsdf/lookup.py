@@ -13,7 +13,9 @@ closest to the shading point lies in the cell being visited: a piece listed in
 several visited cells is thus evaluated exactly once (that point lies inside
 the window, hence inside the visited box, and the piece is listed in its
 cell).  Counts and sizes are array data, never Python literals, so a scratch
-set of another size reuses the compiled kernels.
+set of another size reuses the compiled kernels.  Lanes whose window lies in a
+periodic family (:mod:`.periodic`, found when the tables are uploaded) skip the
+search: their tracks are summed in closed form.
 """
 from __future__ import annotations
 

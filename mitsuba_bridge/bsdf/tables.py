@@ -102,8 +102,9 @@ class GridTables:
     crossing_start: np.ndarray = None
     crossing_partner: np.ndarray = None  #: uint32 partner pieces, padded to at least two entries
     crossing_along: np.ndarray = None  #: float32 parameter of each crossing along its lower piece
-    #: (N, 2) float32: length (UV) of the piece of the same groove that continues each piece straight on
-    #: before its start and after its end (0: the groove ends or turns there); None: not known
+    #: (N, 2) float32: how far (UV) each piece's groove runs on straight, through pieces of the same width
+    #: and depth, before its start and after its end (0: it ends or turns there); None: not known
+    #: (:func:`continuations`)
     continuation: np.ndarray = None
 
     @property
