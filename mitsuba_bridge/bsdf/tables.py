@@ -225,33 +225,6 @@ def continuations(a, b, segments) -> np.ndarray:
             link = np.where(ahead, link[target], -1)
         result[:, column] = run
     return result
-    lo = np.minimum(a.min(axis=0), b.min(axis=0))
-    extent = float(np.max(np.maximum(a.max(axis=0), b.max(axis=0)) - lo))
-    step = max(extent, 1e-30) / float(1 << 30)
-
-    def keys(points):
-        q = np.floor((points - lo) / step).astype(np.int64)
-        return (q[:, 0] << 31) | q[:, 1]
-
-    start_keys = keys(a)
-    order = np.argsort(start_keys)
-    sorted_keys = start_keys[order]
-    del start_keys
-    for first in range(0, count, CHUNK):  # chunks of ends bound the temporaries
-        mine = np.arange(first, min(first + CHUNK, count))
-        end_keys = keys(b[mine])
-        at = np.minimum(np.searchsorted(sorted_keys, end_keys), count - 1)
-        follower = order[at]
-        e, e_next = b[mine] - a[mine], b[follower] - a[follower]
-        length, length_next = np.hypot(e[:, 0], e[:, 1]), np.hypot(e_next[:, 0], e_next[:, 1])
-        straight = ((np.abs(e[:, 0] * e_next[:, 1] - e[:, 1] * e_next[:, 0])
-                     < STRAIGHT_ON_SIN * np.maximum(length * length_next, 1e-300))
-                    & (np.einsum("ij,ij->i", e, e_next) > 0))
-        same = (segments[mine, 6] == segments[follower, 6]) & (segments[mine, 7] == segments[follower, 7])
-        joined = (sorted_keys[at] == end_keys) & straight & same & (follower != mine)
-        result[mine[joined], 1] = length_next[joined]
-        result[follower[joined], 0] = length[joined]
-    return result
 
 
 def _no_crossings(piece_count):
