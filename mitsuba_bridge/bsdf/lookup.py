@@ -72,7 +72,6 @@ class Grid:
     bucketed: bool = True
     #: mi.Float, per cell SLOTS × 3 Vector4f: the periodic families of :mod:`.periodic` (None: the set has none)
     family_frames: object = None
-    family_pieces: object = None  #: mi.UInt32, per cell SLOTS: one piece of each family
     cell_size: object = None  #: opaque mi.Float: the cell's side in UV units
     family_count: int = 0  #: periodic families in all (to_string)
 
@@ -117,7 +116,6 @@ class Grid:
             max_width=dr.opaque(mi.Float, float(tables.segments[:tables.piece_count, 6].max(initial=0.0))),
             bucketed=bucketed,
             family_frames=None if families is None else _owned(mi.Float, families.frames.ravel()),
-            family_pieces=None if families is None else _owned(mi.UInt32, families.pieces.ravel()),
             cell_size=dr.opaque(mi.Float, tables.cell_size),
             family_count=0 if families is None else families.families)
 

@@ -303,16 +303,15 @@ class Model:
             kept = tuple(dr.select(count == k, piece, kept[k]) for k in range(kept_count))
             return energy, chosen, dr.clip(u, 0.0, 0.99999994), count + 1, kept
 
-        energy0, chosen0, scanning = dr.zeros(mi.Float), dr.zeros(mi.UInt32), active & has_glossy
+        energy0, scanning = dr.zeros(mi.Float), active & has_glossy
         family = self._family(jac, active & has_glossy) if has_glossy else None
-        if family is not None:  # a periodic family: its tracks' weight, and one of them (all sample alike)
+        if family is not None:  # a periodic family: its tracks' weight (all sample alike: its line, below)
             energy0 = self._family_weight(family, kz0)
-            chosen0 = dr.select(family.eligible, family.piece, chosen0)
             scanning &= ~family.eligible
         no_pieces = tuple(dr.zeros(mi.UInt32) for _ in range(kept_count))
         energy, chosen, u, count, kept = for_each_segment(
             self.grid, jac, WINDOW_RADIUS_SIGMAS * sigma,
-            (energy0, chosen0, mi.Float(sample1), dr.zeros(mi.UInt32), no_pieces), body, scanning)
+            (energy0, dr.zeros(mi.UInt32), mi.Float(sample1), dr.zeros(mi.UInt32), no_pieces), body, scanning)
 
         # ---- strategy from the left-over uniform (independent of the segment drawn)
         q_d, q_s, q_m = self._strategy_weights(si, energy, wi.z, has_glossy, has_diffuse, active)

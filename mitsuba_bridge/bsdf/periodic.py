@@ -96,16 +96,14 @@ BUILD_THREADS = 4
 
 @dataclass(frozen=True, eq=False)
 class PeriodicTables:
-    """``frames`` (cells, SLOTS, FAMILY_FLOATS) float32 and ``pieces`` (cells, SLOTS) uint32.
+    """``frames`` (cells, SLOTS, FAMILY_FLOATS) float32.
 
     Per family, in the cell's coordinates (cells, from its corner): the unit normal n of its tracks,
     the offset n·x of its first track and the pitch, the offset of its last track, the interval
     [s_lo, s_hi] along t = (n_v, -n_u) where all of its tracks run and no other piece lies, the
-    width (µm) and the depth (µm, negative: V-groove) of its grooves; ``pieces``: one of its pieces
-    (the sampler's line).  An empty slot has pitch 0."""
+    width (µm) and the depth (µm, negative: V-groove) of its grooves.  An empty slot has pitch 0."""
 
     frames: np.ndarray
-    pieces: np.ndarray
     families: int  #: families in all
     cells: int  #: cells holding one or two
 
@@ -120,7 +118,6 @@ def periodic_families(cell_start, references, segments, cell_frames, origin, cel
     counts = np.diff(starts)
     cells = len(counts)
     frames = np.zeros((cells, SLOTS, FAMILY_FLOATS), np.float32)
-    pieces = np.zeros((cells, SLOTS), np.uint32)
     # cells of nearly parallel pieces only (the tables' largest offset spread of a piece across the cell's
     # dominant direction): a scattered set is passed over at no cost
     candidates = np.flatnonzero((counts >= MIN_TRACKS) & (cell_frames[:, 2] < MAX_SPREAD_CELLS))
@@ -137,18 +134,18 @@ def periodic_families(cell_start, references, segments, cell_frames, origin, cel
 
     def run(chunk):
         _chunk_families(chunk, starts, counts, references, segments, np.asarray(origin, np.float64),
-                        float(cell_size), nu, frames, pieces, normals, continuation)
+                        float(cell_size), nu, frames, normals, continuation)
 
     with ThreadPoolExecutor(max_workers=min(BUILD_THREADS, os.cpu_count() or 1)) as pool:
         list(pool.map(run, chunks))
     filled = frames[:, :, 3] > 0
     if not filled.any():
         return None
-    return PeriodicTables(frames=aligned(frames), pieces=aligned(pieces), families=int(filled.sum()),
+    return PeriodicTables(frames=aligned(frames), families=int(filled.sum()),
                           cells=int(filled.any(axis=1).sum()))
 
 
-def _chunk_families(chunk, starts, counts, references, segments, origin, h, nu, frames, pieces, cell_normals,
+def _chunk_families(chunk, starts, counts, references, segments, origin, h, nu, frames, cell_normals,
                     continuation):
     """Fill the slots of the cells in ``chunk`` (vectorised over their references, grouped by cell)."""
     n_refs = counts[chunk]
@@ -186,8 +183,8 @@ def _chunk_families(chunk, starts, counts, references, segments, origin, h, nu, 
         flip = (t_f[:, 1] * normal[:, 0] - t_f[:, 0] * normal[:, 1]) > 0  # n_f = (-t_v, t_u)
         t_f = np.where(flip[:, None], -t_f, t_f)
         ok = ~spoiled & (has_b if slot else True)
-        _family(slot, member & ok[local], t_f, other & ok[local], local, a, e, t, runs_on, piece, width, depth,
-                chunk, frames, pieces)
+        _family(slot, member & ok[local], t_f, other & ok[local], local, a, e, t, runs_on, width, depth,
+                chunk, frames)
 
 
 def _any_per_cell(flags, cell_of, cells):
@@ -198,7 +195,7 @@ def _project(vectors, direction_x, direction_y):
     return vectors[:, 0] * direction_x + vectors[:, 1] * direction_y
 
 
-def _family(slot, member, t_f, other, local, a, e, t, runs_on, piece, width, depth, chunk, frames, pieces):
+def _family(slot, member, t_f, other, local, a, e, t, runs_on, width, depth, chunk, frames):
     """One slot of every cell of the chunk: the family of the references ``member`` (direction ``t_f``)."""
     cells = len(chunk)
     idx = np.flatnonzero(member)
@@ -288,7 +285,6 @@ def _family(slot, member, t_f, other, local, a, e, t, runs_on, piece, width, dep
     frames[target, slot, 6] = s_hi[rows]
     frames[target, slot, 7] = w[first_piece[rows]]
     frames[target, slot, 8] = d[first_piece[rows]]
-    pieces[target, slot] = piece[idx[first_piece[rows]]]
 
 
 def _per_cell_extreme(ufunc, values, cell_of, cells, fill):
@@ -323,7 +319,6 @@ class Family:
     width: object  #: mi.Float: W (µm)
     depth: object  #: mi.Float: D (µm)
     triangular: object  #: mi.Bool
-    piece: object  #: mi.UInt32: one of its pieces (the sampler's line)
 
 
 class _Slot(NamedTuple):
@@ -336,7 +331,6 @@ class _Slot(NamedTuple):
     offset: object  #: µm: signed distance a·n of its first track from x0 (n of the tracks' local frame)
     width: object
     depth: object  #: ±D
-    piece: object
 
 
 def find_family(grid, jac, sigma, active) -> Family:
@@ -385,8 +379,7 @@ def find_family(grid, jac, sigma, active) -> Family:
         holds = (wanted & (f0.w > 0.0) & (box_lo >= f0.z - gap) & (box_hi <= f1.x + gap) & (s - along >= f1.y)
                  & (s + along <= f1.z))
         offset = signed * (f0.z - (f0.x * du + f0.y * dv)) * micrometres_per_cell
-        piece = dr.gather(mi.UInt32, grid.family_pieces, cell * SLOTS + k, wanted)
-        return _Slot(holds, f0.x, f0.y, f0.w * micrometres_per_cell, offset, f1.w, depth, piece)
+        return _Slot(holds, f0.x, f0.y, f0.w * micrometres_per_cell, offset, f1.w, depth)
 
     # ---- only lanes whose own cell holds a family go on (whole SIMD packets elsewhere skip the rest)
     u = dr.floor(dr.clip(gu, 0.0, mi.Float(grid.cells_u - 1)))
@@ -431,17 +424,16 @@ def find_family(grid, jac, sigma, active) -> Family:
         # the tracks' direction in the local frame: J t, t = (n_v, -n_u)
         ex, ey = jac.j00 * own.n_v - jac.j01 * own.n_u, jac.j10 * own.n_v - jac.j11 * own.n_u
         inv = dr.rsqrt(dr.maximum(ex * ex + ey * ey, 1e-30))
-        return eligible, ex * inv, ey * inv, own.pitch, offset, own.width, own.depth, own.piece
+        return eligible, ex * inv, ey * inv, own.pitch, offset, own.width, own.depth
 
     def nothing(candidate):
         zero = dr.zeros(mi.Float)
-        return dr.zeros(mi.Bool), zero, zero, zero, zero, zero, zero, dr.zeros(mi.UInt32)
+        return dr.zeros(mi.Bool), zero, zero, zero, zero, zero, zero
 
-    eligible, dx, dy, pitch, offset, width, depth, piece = dr.if_stmt(
+    eligible, dx, dy, pitch, offset, width, depth = dr.if_stmt(
         (candidate,), candidate, search, nothing, label="scratch_family")
     return Family(eligible=eligible, dx=dx, dy=dy, pitch=pitch, a0=offset,
-                  width=dr.maximum(width, profiles.MIN_WIDTH_UM), depth=dr.abs(depth), triangular=depth < 0.0,
-                  piece=piece)
+                  width=dr.maximum(width, profiles.MIN_WIDTH_UM), depth=dr.abs(depth), triangular=depth < 0.0)
 
 
 def _sinc(x):
