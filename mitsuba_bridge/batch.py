@@ -57,6 +57,7 @@ def parse_chunk(text: str) -> tuple[int, int]:
 
 def _load(folder):
     from .export import SCENE_FILE, load_folder
+    from .render import interruption_in
 
     folder = Path(folder)
     scene_file = folder / SCENE_FILE if folder.is_dir() else folder
@@ -65,6 +66,8 @@ def _load(folder):
     try:
         return load_folder(folder), scene_file
     except (OSError, RuntimeError, ValueError, TypeError) as error:
+        if interruption_in(error):  # Ctrl-C while a Python plugin was being built: main's 130, not a load error
+            raise KeyboardInterrupt from error
         # Mitsuba repeats the file's path ("At /path/scene.xml (line 3, col 6): ..."): keep the line only.
         message = one_line(error).replace(f"At {scene_file.resolve()} ", "")
         raise CommandError(f"cannot load {scene_file}: {message}") from None

@@ -26,6 +26,8 @@ from __future__ import annotations
 
 import re
 
+from .render import RenderInterrupted, interruption_in
+
 __all__ = ["FrozenRender", "mitsuba_globals", "unreachable_variable"]
 
 #: Unreachable variables accepted at most (Mitsuba 3.9 has four: the CIE x, y, z tables and Y).
@@ -132,6 +134,8 @@ class FrozenRender:
                 # An opaque seed: a literal one would be recorded again as soon as it changes.
                 return self._functions[key](scene, dr.opaque(mi.UInt32, seed), handles)
             except RuntimeError as error:
+                if interruption_in(error):  # Ctrl-C while recording: not the recording's fault
+                    raise RenderInterrupted("interrupted while rendering") from error
                 self.enabled, self._functions = False, {}
                 self.failure = _chain(error)
         return mi.render(scene, sensor=sensor, spp=spp, seed=seed)

@@ -14,6 +14,7 @@ the running mean (:class:`Refresh`).
 from __future__ import annotations
 
 import functools
+import re
 import time
 from dataclasses import dataclass
 from typing import Iterable, Iterator
@@ -25,11 +26,32 @@ from .schedule import MAX_SAMPLES_PER_PASS, Chunk, PairwiseSum, ScheduleError, p
 
 __all__ = ["Progress", "Refresh", "render_passes", "render_chunks", "render_image", "film_pixels", "pass_seed",
            "sample_schedule", "Chunk", "MAX_SAMPLES_PER_PASS", "NotEnoughMemory", "ScheduleError",
-           "RenderInterrupted", "render_whole"]
+           "RenderInterrupted", "render_whole", "interruption_in"]
 
 
 class RenderInterrupted(KeyboardInterrupt):
     """Mitsuba stopped a render early (a SIGINT reached it): the result of that call is not used."""
+
+
+def interruption_in(error: BaseException | None) -> bool:
+    """Whether ``error`` is, or was caused by, a Ctrl-C (``KeyboardInterrupt``).
+
+    A SIGINT that arrives while Mitsuba runs Python code raises
+    ``KeyboardInterrupt`` there, and Mitsuba hands it on as a ``RuntimeError``:
+    inside ``mi.render`` (a Python plugin's callback, traced inside ``dr.custom``)
+    with the interrupt as its cause ("error while performing a custom
+    differentiable operation"); inside ``mi.load_*`` (a Python plugin's
+    constructor) with the plugin's traceback in its message only.
+    """
+    while error is not None:
+        if isinstance(error, KeyboardInterrupt) or _PYTHON_INTERRUPT.search(str(error)):
+            return True
+        error = error.__cause__
+    return False
+
+
+#: The last line of a Python traceback that Mitsuba's parser copies into its message.
+_PYTHON_INTERRUPT = re.compile(r"^KeyboardInterrupt\b", re.MULTILINE)
 
 
 def render_whole(scene, **arguments):
@@ -37,16 +59,23 @@ def render_whole(scene, **arguments):
 
     While ``mi.render`` runs, Mitsuba replaces the SIGINT handler with its own,
     which cancels the integrator and passes the signal on to the previous
-    handler.  Python's raises ``KeyboardInterrupt`` later, but a process that
-    inherited SIGINT as ignored (a background job of a shell script) never
-    hears of it, and the call returns as if nothing happened.  The
+    handler.  Python's raises ``KeyboardInterrupt`` later (or at once inside a
+    Python plugin, where Dr.Jit wraps it in a ``RuntimeError``: unwrapped here
+    by :func:`interruption_in`), but a process that inherited SIGINT as ignored
+    (a background job of a shell script) never hears of it, and the call
+    returns as if nothing happened.  The
     integrator's ``should_stop()`` remembers the cancellation until the next
     render (it is also set by an integrator's ``timeout``, which our scenes
     never set): checked here, so that no cancelled render reaches an image.
     """
     import mitsuba as mi
 
-    image = mi.render(scene, **arguments)
+    try:
+        image = mi.render(scene, **arguments)
+    except RuntimeError as error:
+        if not interruption_in(error):
+            raise
+        raise RenderInterrupted("interrupted while rendering") from error
     if scene.integrator().should_stop():
         raise RenderInterrupted("Mitsuba stopped the render early (interrupted)")
     return image

@@ -1,4 +1,7 @@
 """Small scenes built in code for the bridge tests."""
+import contextlib
+import gc
+
 import numpy as np
 
 from scratch_iridescence.mitsuba_bridge import scene as S
@@ -42,3 +45,54 @@ def bright_centroid(image, threshold=0.2):
     ys, xs = np.nonzero(image[..., :3].mean(axis=-1) > threshold)
     assert len(xs), "nothing bright in the image"
     return xs.mean() + 0.5, ys.mean() + 0.5
+
+
+@contextlib.contextmanager
+def interrupting_scene():
+    """A plane whose Python BSDF sends the process a SIGINT whenever Mitsuba traces its ``sample``.
+
+    What a Ctrl-C does when it lands while a Python plugin runs, at a moment that does not depend on
+    timing. Python's own SIGINT handler is installed meanwhile (a suite run in the background ignores
+    SIGINT). On exit the scene is dropped and collected: Dr.Jit traces every live BSDF instance of the
+    variant in each render's method calls, so a lingering one would interrupt later tests' renders too.
+    Callers drop what they hold of it (an exception's traceback holds the frames that hold the scene).
+    """
+    import signal
+
+    import mitsuba as mi
+
+    class Interrupting(mi.BSDF):
+        def __init__(self, props):
+            mi.BSDF.__init__(self, props)
+            self.m_flags = mi.BSDFFlags.DiffuseReflection | mi.BSDFFlags.FrontSide
+            self.m_components = [self.m_flags]
+
+        def sample(self, ctx, si, sample1, sample2, active):
+            signal.raise_signal(signal.SIGINT)
+            return mi.BSDFSample3f(), mi.Spectrum(0.0)
+
+        def eval(self, ctx, si, wo, active):
+            return mi.Spectrum(0.0)
+
+        def pdf(self, ctx, si, wo, active):
+            return mi.Float(0.0)
+
+        def eval_pdf(self, ctx, si, wo, active):
+            return mi.Spectrum(0.0), mi.Float(0.0)
+
+        def to_string(self):
+            return "Interrupting[]"
+
+    mi.register_bsdf("test_interrupting", Interrupting)
+    scene = mi.load_dict({"type": "scene", "integrator": {"type": "path", "max_depth": 3},
+                          "sensor": {"type": "perspective", "film": {"type": "hdrfilm", "width": 4, "height": 4},
+                                     "to_world": mi.ScalarTransform4f().look_at([0, 0, 3], [0, 0, 0], [0, 1, 0])},
+                          "plane": {"type": "rectangle", "bsdf": {"type": "test_interrupting"}},
+                          "world": {"type": "constant"}})
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        yield scene
+    finally:
+        signal.signal(signal.SIGINT, previous)
+        del scene
+        gc.collect()

@@ -187,6 +187,37 @@ def test_ctrl_c_ends_cleanly_with_status_130(good, tmp_path):
     assert read_exr(out).shape == (2, 2, 3)  # the previous file is untouched
 
 
+def test_ctrl_c_while_a_python_plugin_loads_is_an_interruption_not_a_load_error(good, tmp_path, capsys):
+    """Mitsuba's parser turns a KeyboardInterrupt raised in a Python plugin's constructor (a Ctrl-C during
+    the seconds a dense scratch set takes to build) into a RuntimeError that carries only the traceback's
+    text: it still ends as an interruption (130), not as "cannot load". The plugin raises what Python's
+    SIGINT handler raises: a real signal would be handled on the main thread, and the parser builds plugins
+    on worker threads too, so where the interrupt lands would depend on the thread."""
+    import gc
+    import shutil
+
+    import mitsuba as mi
+
+    class InterruptedLoad(mi.BSDF):
+        def __init__(self, props):
+            mi.BSDF.__init__(self, props)
+            raise KeyboardInterrupt
+
+    mi.register_bsdf("test_interrupted_load", InterruptedLoad)
+    folder = tmp_path / "interrupted-load"
+    shutil.copytree(good / "plain", folder)
+    text = (folder / "scene.xml").read_text()
+    start = text.index('<bsdf type="diffuse"')
+    end = text.index("</bsdf>", start) + len("</bsdf>")
+    (folder / "scene.xml").write_text(text[:start] + '<bsdf type="test_interrupted_load" name="bsdf"/>' + text[end:])
+    out = tmp_path / "out.exr"
+    try:
+        assert main(["render", str(folder), "-o", str(out), *LLVM]) == 130
+    finally:
+        gc.collect()
+    assert capsys.readouterr().err.strip() == "interrupted: nothing was written" and not out.exists()
+
+
 def test_a_mesh_file_with_nan_vertices_is_refused_by_name(variant, tmp_path, capsys):
     """Mitsuba's PLY reader checks vertices itself (meshes built in memory are checked by mitsuba_bridge.finite)."""
     positions = quad(4.0).positions.copy()

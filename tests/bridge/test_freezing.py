@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from bridge_scenes import simple_scene
+from bridge_scenes import interrupting_scene, simple_scene
 from scratch_iridescence.mitsuba_bridge import builder, freezing
 from scratch_iridescence.mitsuba_bridge import scene as S
 
@@ -92,3 +92,16 @@ def test04_a_plugin_that_cannot_be_recorded_falls_back_to_traced_passes_never_to
     _HIDDEN["albedo"] = dr.opaque(mi.Float, 0.25)  # a replay would still use 0.5
     second = np.asarray(frozen(scene, 0, 1, 7))
     assert np.allclose(second[..., :3], 0.5 * first[..., :3], rtol=1e-5, atol=1e-7)
+
+
+def test_a_ctrl_c_while_recording_is_handed_on_and_keeps_freezing_enabled(variant):
+    """Dr.Jit wraps the KeyboardInterrupt in a RuntimeError, like a failed recording: it must not be taken for
+    one (which would switch freezing off for the session), but end the pass as an interruption."""
+    from scratch_iridescence.mitsuba_bridge import render
+
+    frozen = freezing.FrozenRender()
+    with interrupting_scene() as scene:
+        with pytest.raises(render.RenderInterrupted):
+            frozen(scene, 0, 1, 0)
+        del scene
+    assert frozen.enabled and frozen.failure is None

@@ -4,7 +4,7 @@ import time
 import numpy as np
 import pytest
 
-from bridge_scenes import simple_scene
+from bridge_scenes import interrupting_scene, simple_scene
 from scratch_iridescence.mitsuba_bridge import builder, render, schedule
 from scratch_iridescence.mitsuba_bridge import scene as S
 
@@ -187,3 +187,19 @@ def test13_a_render_mitsuba_stopped_early_never_reaches_the_image(variant):
         render.render_whole(stopped, spp=1, seed=0)
     with pytest.raises(KeyboardInterrupt):  # the CLI's Ctrl-C path: "interrupted: nothing was written", 130
         list(render.render_passes(stopped, 8))
+
+
+def test14_ctrl_c_inside_a_python_plugin_is_an_interruption_not_a_failure(variant):
+    """A SIGINT that arrives while Mitsuba traces a Python plugin raises ``KeyboardInterrupt`` inside
+    ``dr.custom``, which hands it on as a ``RuntimeError``: the CLI must still say "interrupted" (exit 130),
+    not "rendering failed". The plugin sends itself a real SIGINT, so the moment is deterministic."""
+    with interrupting_scene() as scene:
+        with pytest.raises(render.RenderInterrupted) as caught:
+            render.render_whole(scene, spp=1, seed=0)
+        assert render.interruption_in(caught.value.__cause__)
+        with pytest.raises(KeyboardInterrupt):  # render_passes hands it on to the CLI's Ctrl-C path
+            list(render.render_passes(scene, 4))
+        del scene, caught
+    assert not render.interruption_in(RuntimeError("a plugin failed: KeyboardInterrupt"))
+    plain = builder.load_scene(simple_scene(world=S.ConstantWorld((0.5, 0.5, 0.5))), S.RenderSettings())
+    assert np.asarray(render.render_whole(plain, spp=1, seed=0)).shape == (24, 32, 4)  # nothing lingers
