@@ -74,6 +74,8 @@ class Grid:
     family_frames: object = None
     cell_size: object = None  #: opaque mi.Float: the cell's side in UV units
     family_count: int = 0  #: periodic families in all (to_string)
+    #: cells whose families meet on a kink line (a Python choice too: none, and the kernel has no kink code)
+    kink_count: int = 0
 
     @property
     def periodic(self) -> bool:
@@ -117,7 +119,8 @@ class Grid:
             bucketed=bucketed,
             family_frames=None if families is None else _owned(mi.Float, families.frames.ravel()),
             cell_size=dr.opaque(mi.Float, tables.cell_size),
-            family_count=0 if families is None else families.families)
+            family_count=0 if families is None else families.families,
+            kink_count=0 if families is None else families.kinks)
 
 
 def references_per_occupied_cell(cell_start) -> float:

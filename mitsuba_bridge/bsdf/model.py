@@ -22,7 +22,7 @@ from .energy import albedo_excess
 from .fresnel import fresnel_conductor
 from .lookup import Grid, for_each_crossing, for_each_segment, jacobian, replay_pieces, segment_at
 from .overlap import crossing_correction
-from .periodic import family_energy, family_field, find_family
+from .periodic import family_field, find_family, run_energies
 from .segment import SegmentGeometry, amplitude, frequencies
 from .triples import add_triples
 from .window import mirror_lobe
@@ -102,21 +102,43 @@ class Model:
             return None
         return find_family(self.grid, jac, self.sigma, active)
 
-    def _family_weight(self, family, kz0):
-        """Its tracks' summed selection weight (hero wavelength); 0 where the lane has no family."""
+    def _family_weights(self, family, kz0):
+        """The selection weights of its runs' tracks (hero wavelength): A's, and B's at a kink (else 0);
+        0 where the lane has no family."""
         kappa = kz0 * family.depth
-        weight = family_energy(family, kappa, self.sigma) * sampling.groove_energy(family.triangular, kappa, True)
-        return dr.select(family.eligible, weight, 0.0)
+        groove = sampling.groove_energy(family.triangular, kappa, True)
+        a, b = run_energies(family, self.sigma)
+        return dr.select(family.eligible, a * groove, 0.0), dr.select(family.eligible, b * groove, 0.0)
+
+    def _family_density(self, family, w_a, w_b, xi_x, xi_y, wi, lam0, kz0):
+        """``Σ weight · p_line(ξ)`` over its runs (B's only in SIMD packets holding a kink)."""
+        density = w_a * self._scratch_density(self._family_line(family), xi_x, xi_y, wi, lam0, kz0)
+        if family.kink is None:
+            return density
+
+        def second(turn, density):
+            line = self._family_line(family, True)
+            return turn + 1, density + w_b * self._scratch_density(line, xi_x, xi_y, wi, lam0, kz0)
+
+        # (one turn of a loop on the kink lanes: packets without one leave it at once; as a symbolic branch
+        # its body cost every packet, periodic.family_field)
+        turns = dr.select(family.kink, 1, 0)
+        return dr.while_loop((dr.zeros(mi.UInt32), density), lambda turn, density: turn < turns, second,
+                             label="scratch_family_kink_pdf")[1]
 
     def _family_field(self, family, lobe, xi_x, xi_y, k_z):
         s = family_field(family, xi_x, xi_y, k_z, self.sigma)
         return mi.Spectrum(lobe + s.re), mi.Spectrum(s.im)
 
     @staticmethod
-    def _family_line(family):
-        """Its tracks as the sampler sees a segment (direction, width, depth, profile)."""
+    def _family_line(family, second=False):
+        """Its tracks as the sampler sees a segment (direction, width, depth, profile); ``second``: the
+        tracks of its run B (at a kink; a mask selects per lane)."""
         zero = dr.zeros(mi.Float)
-        return SegmentGeometry(c=zero, length=zero, a_perp=family.a0, dx=family.dx, dy=family.dy,
+        a0, dx, dy = family.a0, family.dx, family.dy
+        if second is not False:
+            a0, dx, dy = (dr.select(second, b, a) for a, b in ((a0, family.b_a0), (dx, family.b_dx), (dy, family.b_dy)))
+        return SegmentGeometry(c=zero, length=zero, a_perp=a0, dx=dx, dy=dy,
                                width=family.width, depth=family.depth, triangular=family.triangular)
 
     # --------------------------------------------------------- evaluation
@@ -164,8 +186,9 @@ class Model:
                 field = dr.if_stmt((lobe,), inside, lambda lobe: self._family_field(family, lobe, xi_x, xi_y, k_z),
                                    lambda lobe: (lobe, zero_s), label="scratch_family_field")
             if want_pdf:
-                energy0 = self._family_weight(family, kz0)
-                density0 = energy0 * self._scratch_density(self._family_line(family), xi0_x, xi0_y, wi, lam0, kz0)
+                w_a, w_b = self._family_weights(family, kz0)
+                energy0 = w_a + w_b
+                density0 = self._family_density(family, w_a, w_b, xi0_x, xi0_y, wi, lam0, kz0)
                 density0 = dr.select(inside, density0, 0.0)
         # "bounded": Σ_k e_k(ω_i), Σ_k e_k(ω_o), the albedo estimate's segment terms (docs/model.md §4.1)
         bounded = self.depth_phase == "bounded" and coherent and want_value and has_glossy
@@ -306,12 +329,20 @@ class Model:
         energy0, scanning = dr.zeros(mi.Float), active & has_glossy
         family = self._family(jac, active & has_glossy) if has_glossy else None
         if family is not None:  # a periodic family: its tracks' weight (all sample alike: its line, below)
-            energy0 = self._family_weight(family, kz0)
+            w_a, w_b = self._family_weights(family, kz0)
+            energy0 = w_a + w_b
             scanning &= ~family.eligible
         no_pieces = tuple(dr.zeros(mi.UInt32) for _ in range(kept_count))
         energy, chosen, u, count, kept = for_each_segment(
             self.grid, jac, WINDOW_RADIUS_SIGMAS * sigma,
             (energy0, dr.zeros(mi.UInt32), mi.Float(sample1), dr.zeros(mi.UInt32), no_pieces), body, scanning)
+
+        second = False
+        if family is not None and family.kink is not None:  # at a kink: B's line in proportion to its weight
+            p_b = dr.select(family.kink & (energy0 > 0.0), w_b / dr.maximum(energy0, 1e-30), 0.0)
+            second = family.kink & (u < p_b)
+            reused = dr.select(second, u / dr.maximum(p_b, 1e-30), (u - p_b) / dr.maximum(1.0 - p_b, 1e-30))
+            u = dr.select(family.kink, dr.clip(reused, 0.0, 0.99999994), u)
 
         # ---- strategy from the left-over uniform (independent of the segment drawn)
         q_d, q_s, q_m = self._strategy_weights(si, energy, wi.z, has_glossy, has_diffuse, active)
@@ -322,7 +353,7 @@ class Model:
         segment = segment_at(self.grid, jac, chosen, scratch & ~family.eligible if family is not None else scratch)
         if family is not None:  # exactly the line the density of evaluate() assumes
             segment = SegmentGeometry(*(dr.select(family.eligible, mine, theirs)
-                                        for mine, theirs in zip(self._family_line(family), segment)))
+                                        for mine, theirs in zip(self._family_line(family, second), segment)))
         lo, hi = self._band(segment, wi, lam0)
         nu_par = sampling.sample_along(sample2.x, sigma)
         nu_perp = sampling.sample_across(sample2.y, segment, kz0 * segment.depth, lo, hi)

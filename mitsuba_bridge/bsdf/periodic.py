@@ -34,6 +34,12 @@ lane scans (:func:`.lookup.for_each_segment`) and gets the scan's values bit
 for bit.  The closed form is the exact sum over the infinite run; the scan
 drops tracks beyond 4σ (e^-8 of the window), so the two differ by that
 truncation, ~1e-4 (tests/bsdf/test_periodic.py).
+
+**Kinks** (:func:`_kinks`, and the same functions): where a cell's two families meet on a line on
+which every track of one ends and every track of the other begins (a CD's polygonal tracks turn there),
+a window inside that cell across the line sums each run cut by its side's half-plane (one Faddeeva
+evaluation per order, docs/model.md §3.5), and ``sample`` draws either run's line in proportion to its
+cut weight.  Sets without kinks compile none of this.
 Units as everywhere in the kernels: µm, 1/µm.
 """
 from __future__ import annotations
@@ -50,9 +56,10 @@ import numpy as np
 
 from . import profiles
 from .complexmath import Cx, expi
+from .faddeeva import faddeeva
 from .references import aligned
 
-__all__ = ["PeriodicTables", "periodic_families", "Family", "find_family", "family_field", "family_energy",
+__all__ = ["PeriodicTables", "periodic_families", "Family", "find_family", "family_field", "run_energies",
            "MIN_TRACKS", "ACROSS_SIGMAS", "ALONG_SIGMAS"]
 
 #: Fewest tracks in a family (fewer: the scan is as cheap).
@@ -84,9 +91,20 @@ ONE_ORDER_SIGMA_PER_PITCH = 1.8
 #: Cells whose pieces spread more than this across their dominant direction hold no family (a CD's
 #: chords turn by 2.5°, spreading 0.02 cells; pieces in all directions spread about a cell).
 MAX_SPREAD_CELLS = 0.1
+#: Largest distance of a track's end from the kink line, relative to the pitch (a CD's lie on it to float
+#: precision: its polygons share their angles).
+KINK_TOLERANCE = 1e-2
+#: Smallest |cos| between the kink line's normal and the tracks (in the cell and where a lane sees them):
+#: the closed form cuts each run along the line where the scan ends each piece square, and the two
+#: differ by wedges that grow with the angle (~5e-4 relative L2 at 9°, ~1e-3 at 30°, tests/bsdf/test_periodic.py).
+KINK_MIN_COS = 0.98
+#: The sign of the transform's exponent in a run's frame: ``S(ξ) = ∫ w T e^{-2πiK·y}`` with an order's
+#: frequency K = ν∥ t + (ν⊥ + m/P) n as :func:`_run_field` builds it (n = (-t_y, t_x))
+HALF_PLANE_SIGN = -1.0
 #: Families per cell (a CD cell with a chord's kink holds two).
 SLOTS = 2
-#: Floats per family: n_u, n_v, o_first, pitch | o_last, s_lo, s_hi, W | ±D, 0, 0, 0.
+#: Floats per family: n_u, n_v, o_first, pitch | o_last, s_lo, s_hi, W | ±D, l_u, l_v, l_offset (a kink
+#: line's normal into the family's side and its offset, :func:`_kinks`; zero where none).
 FAMILY_FLOATS = 12
 #: References per chunk of the numpy build (bounds its temporaries, ~150 bytes per reference) ...
 CHUNK_REFERENCES = 1 << 19
@@ -106,6 +124,7 @@ class PeriodicTables:
     frames: np.ndarray
     families: int  #: families in all
     cells: int  #: cells holding one or two
+    kinks: int = 0  #: cells whose two families meet on a kink line
 
 
 def periodic_families(cell_start, references, segments, cell_frames, origin, cell_size, shape,
@@ -141,8 +160,9 @@ def periodic_families(cell_start, references, segments, cell_frames, origin, cel
     filled = frames[:, :, 3] > 0
     if not filled.any():
         return None
+    kinks = int(np.count_nonzero((frames[:, 0, 9] != 0) | (frames[:, 0, 10] != 0)))
     return PeriodicTables(frames=aligned(frames), families=int(filled.sum()),
-                          cells=int(filled.any(axis=1).sum()))
+                          cells=int(filled.any(axis=1).sum()), kinks=kinks)
 
 
 def _chunk_families(chunk, starts, counts, references, segments, origin, h, nu, frames, cell_normals,
@@ -178,13 +198,16 @@ def _chunk_families(chunk, starts, counts, references, segments, origin, h, nu, 
     in_b = ~in_a & has_b[local] & (cross(t_b) < PARALLEL_SIN)
     spoiled = _any_per_cell(~(in_a | in_b) | ~usable, local, len(chunk))
     normal = cell_normals[chunk]
+    runs = []
     for slot, (member, t_f, other) in enumerate(((in_a, t_a, in_b), (in_b, t_b, in_a))):
         # orient each family like the cell's normal: its references then come nearly sorted by offset
         flip = (t_f[:, 1] * normal[:, 0] - t_f[:, 0] * normal[:, 1]) > 0  # n_f = (-t_v, t_u)
         t_f = np.where(flip[:, None], -t_f, t_f)
         ok = ~spoiled & (has_b if slot else True)
-        _family(slot, member & ok[local], t_f, other & ok[local], local, a, e, t, runs_on, width, depth,
-                chunk, frames)
+        runs.append(_family(slot, member & ok[local], t_f, other & ok[local], local, a, e, t, runs_on, width,
+                            depth, chunk, frames))
+    if runs[0] is not None and runs[1] is not None:
+        _kinks(*runs, chunk, frames)
 
 
 def _any_per_cell(flags, cell_of, cells):
@@ -274,6 +297,13 @@ def _family(slot, member, t_f, other, local, a, e, t, runs_on, width, depth, chu
         s_lo = np.maximum(s_lo, _per_cell_extreme(np.maximum, np.where(below, r_hi, -np.inf), oc, cells, -np.inf))
 
     keep = has & ~bad & (s_hi > s_lo) & (pitch > 0)
+    # the side along the tracks where the other family lies (+1: beyond the tracks' upper ends), 0: none
+    # or both sides; a run with the other family on one side only may end on a kink line (_kinks)
+    other_side = np.zeros(cells, np.int8)
+    if len(jdx):
+        up = _any_per_cell(above, oc, cells)
+        down = _any_per_cell(below, oc, cells)
+        other_side = np.where(up & ~down, 1, np.where(down & ~up, -1, 0)).astype(np.int8)
     rows = np.flatnonzero(keep)
     target = chunk[rows]
     frames[target, slot, 0] = -t_f[rows, 1]
@@ -285,6 +315,68 @@ def _family(slot, member, t_f, other, local, a, e, t, runs_on, width, depth, chu
     frames[target, slot, 6] = s_hi[rows]
     frames[target, slot, 7] = w[first_piece[rows]]
     frames[target, slot, 8] = d[first_piece[rows]]
+    return _Run(keep=keep, other_side=other_side, t_f=t_f, pitch=pitch, track_cell=t_cell,
+                track_offset=t_offset, track_lo=t_lo, track_hi=t_hi)
+
+
+class _Run(NamedTuple):
+    """One slot's family in every cell of a chunk, as the kink detection needs it (cell units)."""
+
+    keep: np.ndarray  #: per cell: the slot holds a family
+    other_side: np.ndarray  #: per cell: +1 / -1 the other family lies wholly beyond its tracks' upper / lower ends
+    t_f: np.ndarray  #: per cell: the tracks' direction (its normal is (-t_v, t_u))
+    pitch: np.ndarray  #: per cell
+    track_cell: np.ndarray  #: per track (grouped by cell, by offset): its chunk-local cell
+    track_offset: np.ndarray  #: per track
+    track_lo: np.ndarray  #: per track: how far it surely runs along t_f, down and up
+    track_hi: np.ndarray
+
+
+def _kinks(first: _Run, second: _Run, chunk, frames):
+    """Mark the cells whose two families meet on a *kink line*: every track of the first ends on one line
+    L and every track of the second starts on it (a CD's polygonal tracks turning at one angle), so that
+    each family is its infinite run cut by a half-plane (docs/model.md §3.5).  Stored in each slot's
+    floats 9–11 as L's unit normal into that family's side and its offset (n·x on L, cells)."""
+    cells = len(chunk)
+    both = first.keep & second.keep & (first.other_side != 0) & (second.other_side != 0)
+    if not both.any():
+        return
+
+    def kink_points(run):
+        """Per track, the end facing the other family, as a point (cells); per cell the first and last."""
+        side = run.other_side[run.track_cell]
+        along = np.where(side > 0, run.track_hi, run.track_lo)
+        t = run.t_f[run.track_cell]
+        points = run.track_offset[:, None] * np.stack([-t[:, 1], t[:, 0]], axis=1) + along[:, None] * t
+        return points, np.isfinite(along)
+
+    p_first, finite_first = kink_points(first)
+    p_second, finite_second = kink_points(second)
+    # L through the first family's first and last kink points
+    starts = cell_first_piece(first.track_cell, cells)
+    counts = np.bincount(first.track_cell, minlength=cells)
+    lasts = starts + np.maximum(counts, 1) - 1
+    direction = p_first[lasts] - p_first[starts]
+    length = np.hypot(direction[:, 0], direction[:, 1])
+    both &= length > 0
+    normal = np.stack([-direction[:, 1], direction[:, 0]], axis=1) / np.where(length > 0, length, 1.0)[:, None]
+    # into the first family's side: away from the other family along its tracks
+    into_first = -first.other_side[:, None] * first.t_f
+    normal *= np.where(np.sum(normal * into_first, axis=1) < 0, -1.0, 1.0)[:, None]
+    offset = np.sum(normal * p_first[starts], axis=1)
+    tolerance = KINK_TOLERANCE * first.pitch
+    for run, points, finite in ((first, p_first, finite_first), (second, p_second, finite_second)):
+        cell = run.track_cell
+        off_line = ~finite | (np.abs(np.sum(normal[cell] * points, axis=1) - offset[cell]) > tolerance[cell])
+        both &= ~_any_per_cell(off_line, cell, cells)
+        # L crosses the tracks (a CD's turns by 2.5°): the half-plane cut is then nearly the groove's own end
+        both &= np.abs(np.sum(normal * run.t_f, axis=1)) >= KINK_MIN_COS
+    rows = np.flatnonzero(both)
+    target = chunk[rows]
+    frames[target, 0, 9:11] = normal[rows]
+    frames[target, 0, 11] = offset[rows]
+    frames[target, 1, 9:11] = -normal[rows]
+    frames[target, 1, 11] = -offset[rows]
 
 
 def _per_cell_extreme(ufunc, values, cell_of, cells, fill):
@@ -319,18 +411,32 @@ class Family:
     width: object  #: mi.Float: W (µm)
     depth: object  #: mi.Float: D (µm)
     triangular: object  #: mi.Bool
+    #: mi.Bool: the window straddles a kink line: the run above (A) holds the half-plane y·l >= h (y = x - x0)
+    #: only, and a second run B of the same groove (direction b_dx, b_dy, pitch b_pitch, offset b_a0) the rest
+    kink: object = None
+    b_pitch: object = None
+    b_dx: object = None
+    b_dy: object = None
+    b_a0: object = None
+    l_x: object = None  #: mi.Float: unit normal of the kink line into A's side (local frame)
+    l_y: object = None
+    h: object = None  #: mi.Float: signed distance of the kink line from x0 along l (µm)
 
 
 class _Slot(NamedTuple):
     """One family slot of one cell, tested against one window."""
 
     holds: object  #: mi.Bool: a family whose rectangle holds the window's part in the cell
+    cut: object  #: mi.Bool: a family cut by a kink line, among whose tracks the window lies up to that line
     n_u: object
     n_v: object
     pitch: object  #: µm
     offset: object  #: µm: signed distance a·n of its first track from x0 (n of the tracks' local frame)
     width: object
     depth: object  #: ±D
+    l_u: object  #: its kink line (cells): unit normal into the family's side, offset (zero: none)
+    l_v: object
+    l_offset: object
 
 
 def find_family(grid, jac, sigma, active) -> Family:
@@ -354,6 +460,7 @@ def find_family(grid, jac, sigma, active) -> Family:
     usable &= ((u0 >= 0.0) & (v0 >= 0.0) & (u1 < mi.Float(grid.cells_u)) & (v1 < mi.Float(grid.cells_v))
                & (u1 - u0 <= 1.0) & (v1 - v0 <= 1.0) & dr.isfinite(extent_u) & dr.isfinite(extent_v))
     signed = dr.select(det >= 0.0, 1.0, -1.0)
+    kinks = grid.kink_count > 0  # (a Python choice: sets without kinks compile no kink code)
 
     def slot(cu, cv, k, wanted) -> _Slot:
         """Slot k of cell (cu, cv) against the window's box clipped to that cell."""
@@ -361,7 +468,7 @@ def find_family(grid, jac, sigma, active) -> Family:
         base = (cell * SLOTS + k) * 3
         f0 = dr.gather(mi.Vector4f, grid.family_frames, base, wanted)  # n_u, n_v, o_first, pitch
         f1 = dr.gather(mi.Vector4f, grid.family_frames, base + 1, wanted)  # o_last, s_lo, s_hi, W
-        depth = dr.gather(mi.Float, grid.family_frames, 4 * (base + 2), wanted)  # ±D
+        f2 = dr.gather(mi.Vector4f, grid.family_frames, base + 2, wanted)  # ±D, l_u, l_v, l_offset
         du, dv = gu - cu, gv - cv  # x0 in this cell's coordinates
         box_u0, box_u1 = dr.maximum(du - extent_u, 0.0), dr.minimum(du + extent_u, 1.0)
         box_v0, box_v1 = dr.maximum(dv - extent_v, 0.0), dr.minimum(dv + extent_v, 1.0)
@@ -376,10 +483,14 @@ def find_family(grid, jac, sigma, active) -> Family:
         # no lattice position of the part lies beyond the first or the last track (those beyond the cell's
         # part belong to its neighbours, checked there), and every track runs past the window's reach
         gap = (1.0 - 2.0 * PITCH_TOLERANCE) * f0.w
-        holds = (wanted & (f0.w > 0.0) & (box_lo >= f0.z - gap) & (box_hi <= f1.x + gap) & (s - along >= f1.y)
-                 & (s + along <= f1.z))
+        across = wanted & (f0.w > 0.0) & (box_lo >= f0.z - gap) & (box_hi <= f1.x + gap)
+        below, above = s - along >= f1.y, s + along <= f1.z
+        # cut by a kink line: only the far end (away from the line, along t) must lie beyond the reach
+        into = f0.y * f2.y - f0.x * f2.z  # t·l
+        cut = across & ((f2.y != 0.0) | (f2.z != 0.0)) & dr.select(into > 0.0, above, below)
         offset = signed * (f0.z - (f0.x * du + f0.y * dv)) * micrometres_per_cell
-        return _Slot(holds, f0.x, f0.y, f0.w * micrometres_per_cell, offset, f1.w, depth)
+        return _Slot(across & below & above, cut, f0.x, f0.y, f0.w * micrometres_per_cell, offset, f1.w, f2.x,
+                     f2.y, f2.z, f2.w)
 
     # ---- only lanes whose own cell holds a family go on (whole SIMD packets elsewhere skip the rest)
     u = dr.floor(dr.clip(gu, 0.0, mi.Float(grid.cells_u - 1)))
@@ -392,7 +503,13 @@ def find_family(grid, jac, sigma, active) -> Family:
     def search(candidate):
         first = slot(u, v, 0, candidate)
         second = slot(u, v, 1, candidate & ~first.holds)
-        own = _Slot(*(dr.select(first.holds, a, b) for a, b in zip(first, second)))
+        # a kink: the window in x0's own cell only, each run among its tracks up to the line (the slots'
+        # grooves agree: the tables checked)
+        kink = dr.zeros(mi.Bool)
+        if kinks:
+            kink = (~first.holds & ~second.holds & first.cut & second.cut & (u0 == u1) & (v0 == v1)
+                    & (sigma >= MIN_SIGMA_PER_PITCH * dr.maximum(first.pitch, second.pitch)))
+        own = _Slot(*(dr.select(first.holds | kink, a, b) for a, b in zip(first, second)))
         eligible = own.holds & (sigma >= MIN_SIGMA_PER_PITCH * own.pitch)
 
         # every cell of the window's box continues it (x0's own cell included: it matches itself)
@@ -420,20 +537,45 @@ def find_family(grid, jac, sigma, active) -> Family:
         eligible = dr.if_stmt((eligible,), leaves, neighbours, lambda eligible: (eligible,),
                               label="scratch_family_neighbours")[0]
 
-        offset = own.offset - own.pitch * dr.round(own.offset * inv_pitch)
-        # the tracks' direction in the local frame: J t, t = (n_v, -n_u)
-        ex, ey = jac.j00 * own.n_v - jac.j01 * own.n_u, jac.j10 * own.n_v - jac.j11 * own.n_u
-        inv = dr.rsqrt(dr.maximum(ex * ex + ey * ey, 1e-30))
-        return eligible, ex * inv, ey * inv, own.pitch, offset, own.width, own.depth
+        def local_run(run: _Slot):
+            """The run's direction J t (t = (n_v, -n_u)) in the local frame and its nearest track's offset."""
+            ex, ey = jac.j00 * run.n_v - jac.j01 * run.n_u, jac.j10 * run.n_v - jac.j11 * run.n_u
+            inv = dr.rsqrt(dr.maximum(ex * ex + ey * ey, 1e-30))
+            return ex * inv, ey * inv, run.offset - run.pitch * dr.round(run.offset * dr.rcp(run.pitch))
+
+        dx, dy, offset = local_run(own)
+        if not kinks:
+            return eligible, dx, dy, own.pitch, offset, own.width, own.depth
+        kink &= ~eligible
+        b_dx, b_dy, b_a0 = local_run(second)
+        # the kink line in the local frame: normal ⟂ J t_L (t_L = (l_v, -l_u)), turned towards J l; its
+        # distance from x0 through the UV Jacobian as for the tracks' offsets
+        lu, lv = own.l_u, own.l_v
+        tx, ty = jac.j00 * lv - jac.j01 * lu, jac.j10 * lv - jac.j11 * lu
+        towards = (jac.j00 * lu + jac.j01 * lv) * -ty + (jac.j10 * lu + jac.j11 * lv) * tx
+        inv = dr.select(towards >= 0.0, 1.0, -1.0) * dr.rsqrt(dr.maximum(tx * tx + ty * ty, 1e-30))
+        adj_l = dr.sqrt(dr.square(jac.j11 * lu - jac.j10 * lv) + dr.square(jac.j00 * lv - jac.j01 * lu))
+        h = ((own.l_offset - (lu * (gu - u) + lv * (gv - v))) * dr.abs(det) * dr.rcp(dr.maximum(adj_l, 1e-30))
+             * grid.cell_size)
+        l_x, l_y = -ty * inv, tx * inv
+        # nearly across both runs where the lane sees them (a shear of the UV map turns the line obliquely)
+        kink &= ((dr.abs(l_x * dx + l_y * dy) >= KINK_MIN_COS) & (dr.abs(l_x * b_dx + l_y * b_dy) >= KINK_MIN_COS))
+        return (eligible | kink, dx, dy, own.pitch, offset, own.width, own.depth,
+                kink, second.pitch, b_dx, b_dy, b_a0, l_x, l_y, h)
 
     def nothing(candidate):
         zero = dr.zeros(mi.Float)
-        return dr.zeros(mi.Bool), zero, zero, zero, zero, zero, zero
+        kink = (dr.zeros(mi.Bool), zero, zero, zero, zero, zero, zero, zero) if kinks else ()
+        return (dr.zeros(mi.Bool), zero, zero, zero, zero, zero, zero) + kink
 
-    eligible, dx, dy, pitch, offset, width, depth = dr.if_stmt(
-        (candidate,), candidate, search, nothing, label="scratch_family")
-    return Family(eligible=eligible, dx=dx, dy=dy, pitch=pitch, a0=offset,
-                  width=dr.maximum(width, profiles.MIN_WIDTH_UM), depth=dr.abs(depth), triangular=depth < 0.0)
+    found = dr.if_stmt((candidate,), candidate, search, nothing, label="scratch_family")
+    eligible, dx, dy, pitch, offset, width, depth = found[:7]
+    family = Family(eligible=eligible, dx=dx, dy=dy, pitch=pitch, a0=offset,
+                    width=dr.maximum(width, profiles.MIN_WIDTH_UM), depth=dr.abs(depth), triangular=depth < 0.0)
+    if kinks:
+        (family.kink, family.b_pitch, family.b_dx, family.b_dy, family.b_a0, family.l_x, family.l_y,
+         family.h) = found[7:]
+    return family
 
 
 def _sinc(x):
@@ -464,24 +606,66 @@ def groove_transform(family: Family, mu, kappa) -> Cx:
 
 
 def family_field(family: Family, xi_x, xi_y, k_z, sigma) -> Cx:
-    """``Σ_n S_n(ξ)`` over the family's infinite run (module docstring), per wavelength.
-
-    The order nearest to -ν⊥P, and its two neighbours where σ < ``ONE_ORDER_SIGMA_PER_PITCH`` P
-    (beyond, they lie more than 0.9/σ away: below e^-16 of the window's peak)."""
-    nu_par = xi_x * family.dx + xi_y * family.dy
-    nu_perp = xi_y * family.dx - xi_x * family.dy
+    """``Σ_n S_n(ξ)`` over the family's infinite run (module docstring), per wavelength; at a kink, the
+    sum of its two runs, each cut by the kink line's half-plane (docs/model.md §3.5)."""
     kappa = k_z * family.depth
+    kind = type(xi_x)
+    full = _run_field(family, family.pitch, family.dx, family.dy, family.a0, xi_x, xi_y, kappa, sigma)
+    if family.kink is None:
+        return full
+
+    def cut_run(i, re, im):
+        """Run A (i = 0) or B (i = 1), cut by its side of the kink line."""
+        second = i == 1
+        pick = lambda a, b: dr.select(second, b, a)
+        side = dr.select(second, -1.0, 1.0)
+        s = _run_field(family, pick(family.pitch, family.b_pitch), pick(family.dx, family.b_dx),
+                       pick(family.dy, family.b_dy), pick(family.a0, family.b_a0), xi_x, xi_y, kappa, sigma,
+                       cut=(side * family.l_x, side * family.l_y, side * family.h))
+        return i + 1, kind(re + s.re), kind(im + s.im)
+
+    # A loop of two turns on the kink lanes, none elsewhere: SIMD packets without a kink leave it at once.
+    # A body this heavy still costs the kernel where it never runs (on the grating, had it kinks: +30 % per
+    # query as a symbolic branch, +12 % as this loop, measured), hence no kink code for sets without kinks
+    # (find_family); the loop also traces the body once for both runs
+    turns = dr.select(family.kink, 2, 0)
+    _, re, im = dr.while_loop((dr.zeros(mi.UInt32), dr.zeros(kind), dr.zeros(kind)),
+                              lambda i, re, im: i < turns, cut_run, label="scratch_family_kink")
+    return Cx(dr.select(family.kink, re, full.re), dr.select(family.kink, im, full.im))
+
+
+def _run_field(family: Family, pitch, dx, dy, a0, xi_x, xi_y, kappa, sigma, cut=None) -> Cx:
+    """One run's ``Σ_n S_n(ξ)``: the order nearest to the window's peak, and its two neighbours where
+    σ < ``ONE_ORDER_SIGMA_PER_PITCH`` P (beyond, they lie more than 0.9/σ away: below e^-16 of the
+    window's peak).  ``cut = (l_x, l_y, h)``: only the half-plane y·l >= h of the run (y = x - x0)."""
+    nu_par = xi_x * dx + xi_y * dy
+    nu_perp = xi_y * dx - xi_x * dy
     sigma2 = sigma * sigma
     gauss = math.sqrt(2.0 * math.pi) * sigma
-    along = gauss * dr.exp((-2.0 * math.pi ** 2) * sigma2 * nu_par * nu_par)
-    inv_pitch = dr.rcp(family.pitch)
-    nearest = dr.round(-nu_perp * family.pitch)
+    inv_pitch = dr.rcp(pitch)
+    if cut is None:
+        along = gauss * dr.exp((-2.0 * math.pi ** 2) * sigma2 * nu_par * nu_par)
+        nearest = dr.round(-nu_perp * pitch)
+        spacing = 1.0
+    else:
+        # an order's frequency K = ν∥ t + (ν⊥ + m/P) n has the components k_l along l (cut: the half-plane
+        # integral) and k_c along the line (whole: a Gaussian); the orders lie |l·t|/P apart in k_c
+        l_x, l_y, h = cut
+        l_t = l_x * dx + l_y * dy  # = l⊥·n, l⊥ = (-l_y, l_x), n = (-dy, dx); |l·t| >= KINK_MIN_COS
+        l_n = l_y * dx - l_x * dy  # l·n = -(l⊥·t)
+        nearest = dr.round(-(nu_perp - nu_par * l_n * dr.rcp(l_t)) * pitch)
+        spacing = dr.abs(l_t)
 
     def order_term(order):
         mu = order * inv_pitch
         eta = nu_perp + mu
-        window = gauss * dr.exp((-2.0 * math.pi ** 2) * sigma2 * eta * eta)
-        phase = expi((2.0 * math.pi) * order * family.a0 * inv_pitch)
+        phase = expi((2.0 * math.pi) * order * a0 * inv_pitch)
+        if cut is None:
+            window = (gauss * dr.exp((-2.0 * math.pi ** 2) * sigma2 * eta * eta)) * along
+            return groove_transform(family, mu, kappa) * phase * window
+        k_l = nu_par * l_t + eta * l_n
+        k_c = eta * l_t - nu_par * l_n
+        window = _half_plane(k_l, h, sigma) * (gauss * dr.exp((-2.0 * math.pi ** 2) * sigma2 * k_c * k_c))
         return groove_transform(family, mu, kappa) * phase * window
 
     def neighbours(nearest):
@@ -491,14 +675,43 @@ def family_field(family: Family, xi_x, xi_y, k_z, sigma) -> Cx:
     def none(nearest):
         return dr.zeros(type(nearest)), dr.zeros(type(nearest))
 
-    wide = sigma < ONE_ORDER_SIGMA_PER_PITCH * family.pitch
+    wide = sigma * spacing < ONE_ORDER_SIGMA_PER_PITCH * pitch
     total = order_term(nearest) + Cx(*dr.if_stmt((nearest,), wide, neighbours, none, label="scratch_family_orders"))
-    return total * (along * inv_pitch)
+    return total * inv_pitch
 
 
-def family_energy(family: Family, kappa, sigma):
-    """``Σ_n ε_n`` of :func:`.sampling.window_energy` over the run (Poisson summation of e^{-a_n²/σ²})."""
-    ratio = sigma * dr.rcp(family.pitch)
+def _half_plane(k, h, sigma) -> Cx:
+    """``∫_{α >= h} e^{-α²/2σ²} e^{HALF_PLANE_SIGN 2πikα} dα``: the window across a kink line, cut at h.
+
+    ``σ√(π/2) e^{-h²/2σ²} e^{2πikh} w((2πσ²k + ih)/(√2σ))`` for h >= 0 (Faddeeva's w, bounded in the
+    upper half plane), and the whole integral ``σ√(2π) e^{-2π²σ²k²}`` less the mirrored one for h < 0
+    (docs/model.md §3.5)."""
+    k = k * HALF_PLANE_SIGN
+    positive = h >= 0.0
+    distance = dr.abs(h)
+    flipped = dr.select(positive, k, -k)
+    inv = dr.rcp(math.sqrt(2.0) * sigma)
+    w = faddeeva(Cx((2.0 * math.pi) * sigma * sigma * flipped * inv, distance * inv))
+    part = w * expi((2.0 * math.pi) * k * h) * (math.sqrt(0.5 * math.pi) * sigma
+                                                 * dr.exp(-0.5 * dr.square(distance / sigma)))
+    whole = math.sqrt(2.0 * math.pi) * sigma * dr.exp((-2.0 * math.pi ** 2) * sigma * sigma * k * k)
+    return Cx(dr.select(positive, part.re, whole - part.re), dr.select(positive, part.im, -part.im))
+
+
+def run_energies(family: Family, sigma):
+    """``(A, B)``: ``Σ_n ε_n`` of :func:`.sampling.window_energy` over each run (Poisson summation of
+    e^{-a_n²/σ²}); at a kink each is cut to its side of the line (the
+    squared window's share there, ½ erfc(±h/σ)), elsewhere B is 0."""
+    a = _run_energy(family, family.pitch, family.a0, sigma)
+    if family.kink is None:
+        return a, dr.zeros(mi.Float)
+    side = 0.5 - 0.5 * dr.erf(family.h * dr.rcp(sigma))  # share of w² on A's side, y·l >= h
+    b = _run_energy(family, family.b_pitch, family.b_a0, sigma)
+    return dr.select(family.kink, a * side, a), dr.select(family.kink, b * (1.0 - side), 0.0)
+
+
+def _run_energy(family: Family, pitch, a0, sigma):
+    ratio = sigma * dr.rcp(pitch)
     tracks = math.sqrt(math.pi) * ratio * (1.0 + 2.0 * dr.exp(-(math.pi ** 2) * ratio * ratio)
-                                           * dr.cos((2.0 * math.pi) * family.a0 * dr.rcp(family.pitch)))
+                                           * dr.cos((2.0 * math.pi) * a0 * dr.rcp(pitch)))
     return family.width * math.sqrt(math.pi) * sigma * tracks

@@ -313,7 +313,7 @@ def _make_class() -> type:
                     f"diffuse={'yes' if self.diffuse is not None else 'no'}, "
                     f"{'coherent' if self.coherent else 'incoherent'}, depth_phase={self.depth_phase}, "
                     f"crossings={self.crossings} ({t.crossing_count} pairs), "
-                    f"periodic families={self.grid.family_count}]")
+                    f"periodic families={self.grid.family_count}, kinks={self.grid.kink_count}]")
 
     ScratchDiffraction.__name__ = "ScratchDiffraction"
     return ScratchDiffraction

@@ -21,6 +21,9 @@ import shading
 
 WAVELENGTHS = (520.0, 410.0, 680.0, 600.0)
 
+#: "kinked_grating" is centred on (KINK_UM, KINK_UM) µm from x0: the middle of a 62.5 µm grid cell.
+KINK_UM = 31.25
+
 CONFIGS = {
     "mirror_only": ([], 0.5, 30.0, {}),
     "rect_offset": ([ref.Scratch((-20, 0.4), (20, 0.4), 1.0, 0.3)], 0.5, 40.0, {}),
@@ -32,10 +35,20 @@ CONFIGS = {
     # a run of tracks summed in closed form (periodic family, docs/model.md §3.5): V-grooves, σ >= pitch
     "periodic_grating": ([ref.Scratch((-30, y), (30, y), 0.3, 0.15, ref.TRI) for y in np.arange(-9.0, 9.01, 0.45)],
                          0.5, 35.0, {"cell_size": 1.0 / 16.0}),
+    # the same V-grooves turning by 8° on a line through the shading point (a CD's kink): two runs, each cut
+    # by its half-plane; the point lies mid-cell (SHADING_UV), where its window stays inside one grid cell
+    "kinked_grating": ([piece for y in KINK_UM + np.arange(-9.0, 9.01, 0.45) for piece in (
+        ref.Scratch((KINK_UM - 30 * np.cos(0.07), y - 30 * np.sin(0.07)), (KINK_UM, y), 0.3, 0.15, ref.TRI),
+        ref.Scratch((KINK_UM, y), (KINK_UM + 30 * np.cos(0.07), y - 30 * np.sin(0.07)), 0.3, 0.15, ref.TRI))],
+                       0.5, 35.0, {"cell_size": 1.0 / 16.0}),
     "incoherent": ([ref.Scratch((-20, y), (20, y), 0.7, 0.2) for y in (-0.8, 0.5)], 0.5, 35.0, {"coherent": False}),
     # the normalisation of depth_phase="bounded" is at work (Kirchhoff albedo > 1 at 40°)
     "deep_bounded": ([ref.Scratch((-20, 0.2), (20, 0.2), 1.0, 1.0)], 0.5, 40.0, {"depth_phase": "bounded"}),
 }
+
+
+#: Where a config's shading point lies, if not at x0 (UV; the test surface has 1 mm per UV unit).
+SHADING_UV = {"kinked_grating": (shading.X0_UV[0] + KINK_UM * 1e-3, shading.X0_UV[1] + KINK_UM * 1e-3)}
 
 
 def make(name):
@@ -49,7 +62,7 @@ def test01_chi2_sample_matches_pdf(name):
     ctx = mi.BSDFContext()
 
     def sample_func(sample):
-        si = shading.uniform_interaction(dr.width(sample), wi, WAVELENGTHS)
+        si = shading.uniform_interaction(dr.width(sample), wi, WAVELENGTHS, uv=SHADING_UV.get(name, shading.X0_UV))
         bs, weight = bsdf.sample(ctx, si, sample[0], mi.Point2f(sample[1], sample[2]))
         # A sample counts where it has a density, not where its weight is non-zero: far out on a
         # scratch line without ends in the window, f_r underflows float32 (e^{-2π²σ²ν∥²}) while the
@@ -58,7 +71,8 @@ def test01_chi2_sample_matches_pdf(name):
         return bs.wo, dr.select(bs.pdf > 0, 1.0, 0.0)
 
     def pdf_func(wo):
-        return bsdf.pdf(ctx, shading.uniform_interaction(dr.width(wo), wi, WAVELENGTHS), wo)
+        si = shading.uniform_interaction(dr.width(wo), wi, WAVELENGTHS, uv=SHADING_UV.get(name, shading.X0_UV))
+        return bsdf.pdf(ctx, si, wo)
 
     test = mi.chi2.ChiSquareTest(domain=mi.chi2.SphericalDomain(), sample_func=sample_func, pdf_func=pdf_func,
                                  sample_dim=3, sample_count=1_000_000, res=101, ires=4, seed=3)
@@ -71,7 +85,7 @@ def test02_weight_is_eval_over_pdf_and_pdfs_agree(name):
     ctx = mi.BSDFContext()
     count = 20000
     rng = np.random.default_rng(2)
-    si = shading.interaction(count, wi, WAVELENGTHS)
+    si = shading.interaction(count, wi, WAVELENGTHS, uv=SHADING_UV.get(name, shading.X0_UV))
     u = shading.floats(rng.random(count))
     bs, weight = bsdf.sample(ctx, si, u, mi.Point2f(shading.floats(rng.random(count)), shading.floats(rng.random(count))))
     value, pdf = bsdf.eval_pdf(ctx, si, bs.wo)
