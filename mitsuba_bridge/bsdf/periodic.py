@@ -338,7 +338,9 @@ def _kinks(first: _Run, second: _Run, chunk, frames):
     each family is its infinite run cut by a half-plane (docs/model.md §3.5).  Stored in each slot's
     floats 9–11 as L's unit normal into that family's side and its offset (n·x on L, cells)."""
     cells = len(chunk)
-    both = first.keep & second.keep & (first.other_side != 0) & (second.other_side != 0)
+    grooves = frames[chunk, :, 7:9]  # W, ±D of both slots: the kernel sums both runs with the first's groove
+    both = (first.keep & second.keep & (first.other_side != 0) & (second.other_side != 0)
+            & np.all(grooves[:, 0] == grooves[:, 1], axis=1))
     if not both.any():
         return
 

@@ -49,9 +49,10 @@ def grating(profile=ref.RECT, *, drop=(), wide=(), crossing=False, jitter=0.0, s
 KINK_X, KINK_HALF_ANGLE_DEG = 31.25, 3.0
 
 
-def kinked_grating(profile=ref.RECT, *, slant_deg=0.0, shift=0.0):
+def kinked_grating(profile=ref.RECT, *, slant_deg=0.0, shift=0.0, second_width=0.6):
     """Tracks of two chords each, turning by twice ``KINK_HALF_ANGLE_DEG`` at vertices on one line (as a
-    CD's polygons do), tilted by ``slant_deg``; ``shift``: every 20th track's vertex moved along it (µm)."""
+    CD's polygons do), tilted by ``slant_deg``; ``shift``: every 20th track's vertex moved along it (µm);
+    ``second_width``: the second chords' width (µm)."""
     d = np.radians(KINK_HALF_ANGLE_DEG)
     a_way, b_way = np.array([np.cos(d), np.sin(d)]), np.array([np.cos(d), -np.sin(d)])
     scratches = []
@@ -61,7 +62,7 @@ def kinked_grating(profile=ref.RECT, *, slant_deg=0.0, shift=0.0):
         if k % 20 == 7:
             vertex = vertex + shift * a_way
         scratches.append(ref.Scratch(tuple(vertex - HALF_LENGTH * a_way), tuple(vertex), 0.6, 0.2, profile))
-        scratches.append(ref.Scratch(tuple(vertex), tuple(vertex + HALF_LENGTH * b_way), 0.6, 0.2, profile))
+        scratches.append(ref.Scratch(tuple(vertex), tuple(vertex + HALF_LENGTH * b_way), second_width, 0.2, profile))
     return scratches
 
 
@@ -306,12 +307,13 @@ def test10_at_a_kink_the_two_cut_runs_equal_the_scan(profile, uv_map, slant):
 
 
 def test11_kinks_need_every_end_on_the_line_and_the_window_in_one_cell():
-    """One vertex off the line (by 10 % of the pitch) spoils the kink; windows reaching another cell or
-    a far end scan, bit for bit."""
+    """One vertex off the line (by 10 % of the pitch), or chords of another width after the turn, spoil the
+    kink; windows reaching another cell or a far end scan, bit for bit."""
     rng = np.random.default_rng(12)
     si, points = lanes(4096, rng, x=(-40.0, 100.0), y=(-30.0, 30.0))
-    bsdf = load(kinked_grating(shift=0.1 * PITCH))
-    assert not eligible(bsdf, si, kink=True)[1].any()
+    for spoiled in (kinked_grating(shift=0.1 * PITCH), kinked_grating(second_width=0.7)):
+        bsdf = load(spoiled)
+        assert not eligible(bsdf, si, kink=True)[1].any() and "kinks=0]" in str(bsdf)
     bsdf = load(kinked_grating())
     inside, kink = eligible(bsdf, si, kink=True)
     box = 4.0 * SIGMA + 0.5  # the window's box, and a margin for the cells' float32 edges
