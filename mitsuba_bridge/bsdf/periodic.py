@@ -35,11 +35,12 @@ for bit.  The closed form is the exact sum over the infinite run; the scan
 drops tracks beyond 4σ (e^-8 of the window), so the two differ by that
 truncation, ~1e-4 (tests/bsdf/test_periodic.py).
 
-**Kinks** (:func:`_kinks`, and the same functions): where a cell's two families meet on a line on
-which every track of one ends and every track of the other begins (a CD's polygonal tracks turn there),
-a window inside that cell across the line sums each run cut by its side's half-plane (one Faddeeva
-evaluation per order, docs/model.md §3.5), and ``sample`` draws either run's line in proportion to its
-cut weight.  Sets without kinks compile none of this.
+**Kinks** (:func:`_end_lines`, and the same functions): where two families meet on a line on which
+every track of one ends and every track of the other begins (a CD's polygonal tracks turn there), a
+window across the line (its box in up to 2 × 2 cells) sums each run cut by its side's half-plane (one
+Faddeeva evaluation per order, docs/model.md §3.5), and ``sample`` draws either run's line in
+proportion to its cut weight; a window near the line but wholly on one side sums that run cut alone.
+Sets without kinks compile none of this.
 Units as everywhere in the kernels: µm, 1/µm.
 """
 from __future__ import annotations
@@ -94,6 +95,10 @@ MAX_SPREAD_CELLS = 0.1
 #: Largest distance of a track's end from the kink line, relative to the pitch (a CD's lie on it to float
 #: precision: its polygons share their angles).
 KINK_TOLERANCE = 1e-2
+#: Two families' end lines are one where their normals differ by less than this and their offsets by
+#: less than this many pitches (each is fitted to its own tracks' float32 ends)
+LINE_NORMAL_TOLERANCE = 1e-4
+LINE_OFFSET_TOLERANCE = 2 * KINK_TOLERANCE
 #: Smallest |cos| between the kink line's normal and the tracks (in the cell and where a lane sees them):
 #: the closed form cuts each run along the line where the scan ends each piece square, and the two
 #: differ by wedges that grow with the angle (~5e-4 relative L2 at 9°, ~1e-3 at 30°, tests/bsdf/test_periodic.py).
@@ -124,7 +129,7 @@ class PeriodicTables:
     frames: np.ndarray
     families: int  #: families in all
     cells: int  #: cells holding one or two
-    kinks: int = 0  #: cells whose two families meet on a kink line
+    kinks: int = 0  #: cells whose two families share their end line (:func:`_end_lines`)
 
 
 def periodic_families(cell_start, references, segments, cell_frames, origin, cell_size, shape,
@@ -152,15 +157,14 @@ def periodic_families(cell_start, references, segments, cell_frames, origin, cel
     normals = cell_frames[:, 0:2].astype(np.float64)
 
     def run(chunk):
-        _chunk_families(chunk, starts, counts, references, segments, np.asarray(origin, np.float64),
-                        float(cell_size), nu, frames, normals, continuation)
+        return _chunk_families(chunk, starts, counts, references, segments, np.asarray(origin, np.float64),
+                               float(cell_size), nu, frames, normals, continuation)
 
     with ThreadPoolExecutor(max_workers=min(BUILD_THREADS, os.cpu_count() or 1)) as pool:
-        list(pool.map(run, chunks))
+        kinks = sum(pool.map(run, chunks))
     filled = frames[:, :, 3] > 0
     if not filled.any():
         return None
-    kinks = int(np.count_nonzero((frames[:, 0, 9] != 0) | (frames[:, 0, 10] != 0)))
     return PeriodicTables(frames=aligned(frames), families=int(filled.sum()),
                           cells=int(filled.any(axis=1).sum()), kinks=kinks)
 
@@ -206,8 +210,7 @@ def _chunk_families(chunk, starts, counts, references, segments, origin, h, nu, 
         ok = ~spoiled & (has_b if slot else True)
         runs.append(_family(slot, member & ok[local], t_f, other & ok[local], local, a, e, t, runs_on, width,
                             depth, chunk, frames))
-    if runs[0] is not None and runs[1] is not None:
-        _kinks(*runs, chunk, frames)
+    return _end_lines(runs, chunk, frames)
 
 
 def _any_per_cell(flags, cell_of, cells):
@@ -332,53 +335,64 @@ class _Run(NamedTuple):
     track_hi: np.ndarray
 
 
-def _kinks(first: _Run, second: _Run, chunk, frames):
-    """Mark the cells whose two families meet on a *kink line*: every track of the first ends on one line
-    L and every track of the second starts on it (a CD's polygonal tracks turning at one angle), so that
-    each family is its infinite run cut by a half-plane (docs/model.md §3.5).  Stored in each slot's
-    floats 9–11 as L's unit normal into that family's side and its offset (n·x on L, cells)."""
+def _end_lines(runs, chunk, frames):
+    """Store each family's *end line*: a line L on which every one of its tracks ends on one side, crossing
+    them nearly square (a CD's chords end on the radial line where its polygons turn), as L's unit normal
+    into the family's side and its offset n·x (cells), in the slot's floats 9–11 (zero: none).
+
+    A cell whose two families share their end line, one on each side, is a *kink*: each family is its
+    infinite run cut by a half-plane (docs/model.md §3.5).  Where the other family lies along the tracks,
+    the line is the ends facing it; a lone family takes the side whose line passes nearer the cell's
+    centre (the one a window in the cell can reach).  Returns the number of kink cells."""
     cells = len(chunk)
-    grooves = frames[chunk, :, 7:9]  # W, ±D of both slots: the kernel sums both runs with the first's groove
-    both = (first.keep & second.keep & (first.other_side != 0) & (second.other_side != 0)
+    found = []
+    for k, run in enumerate(runs):
+        if run is None:
+            found.append(None)
+            continue
+        best = np.zeros((cells, 3))  # l_u, l_v, offset; zero normal: no line
+        distance = np.full(cells, np.inf)
+        for side in (1, -1):
+            normal, offset, valid = _line_of_ends(run, side, cells)
+            valid &= run.keep & ((run.other_side == side) | (run.other_side == 0))
+            nearness = np.abs(0.5 * normal[:, 0] + 0.5 * normal[:, 1] - offset)  # from the cell's centre
+            take = valid & (nearness < distance)
+            best[take, 0:2], best[take, 2], distance[take] = normal[take], offset[take], nearness[take]
+        rows = np.flatnonzero(np.isfinite(distance))
+        frames[chunk[rows], k, 9:12] = best[rows]
+        found.append(best)
+    if found[0] is None or found[1] is None:
+        return 0
+    first, second = found
+    grooves = frames[chunk, :, 7:9]
+    tolerance = LINE_OFFSET_TOLERANCE * np.maximum(runs[0].pitch, runs[1].pitch)
+    kink = ((np.abs(first[:, 0:2] + second[:, 0:2]).max(axis=1) < LINE_NORMAL_TOLERANCE)
+            & (np.abs(first[:, 2] + second[:, 2]) < tolerance) & (np.abs(first[:, 0:2]).sum(axis=1) > 0)
             & np.all(grooves[:, 0] == grooves[:, 1], axis=1))
-    if not both.any():
-        return
+    return int(np.count_nonzero(kink))
 
-    def kink_points(run):
-        """Per track, the end facing the other family, as a point (cells); per cell the first and last."""
-        side = run.other_side[run.track_cell]
-        along = np.where(side > 0, run.track_hi, run.track_lo)
-        t = run.t_f[run.track_cell]
-        points = run.track_offset[:, None] * np.stack([-t[:, 1], t[:, 0]], axis=1) + along[:, None] * t
-        return points, np.isfinite(along)
 
-    p_first, finite_first = kink_points(first)
-    p_second, finite_second = kink_points(second)
-    # L through the first family's first and last kink points
-    starts = cell_first_piece(first.track_cell, cells)
-    counts = np.bincount(first.track_cell, minlength=cells)
+def _line_of_ends(run: _Run, side, cells):
+    """Per cell: the line through the ends of the run's tracks on ``side`` (+1: their upper ends along
+    t_f), its unit normal into the run, its offset, and whether every end lies on it (``KINK_TOLERANCE``)
+    and it crosses the tracks at |cos| >= ``KINK_MIN_COS``."""
+    cell = run.track_cell
+    along = run.track_hi if side > 0 else run.track_lo
+    t = run.t_f[cell]
+    points = run.track_offset[:, None] * np.stack([-t[:, 1], t[:, 0]], axis=1) + along[:, None] * t
+    starts = cell_first_piece(cell, cells)
+    counts = np.bincount(cell, minlength=cells)
     lasts = starts + np.maximum(counts, 1) - 1
-    direction = p_first[lasts] - p_first[starts]
+    direction = points[lasts] - points[starts]
     length = np.hypot(direction[:, 0], direction[:, 1])
-    both &= length > 0
-    normal = np.stack([-direction[:, 1], direction[:, 0]], axis=1) / np.where(length > 0, length, 1.0)[:, None]
-    # into the first family's side: away from the other family along its tracks
-    into_first = -first.other_side[:, None] * first.t_f
-    normal *= np.where(np.sum(normal * into_first, axis=1) < 0, -1.0, 1.0)[:, None]
-    offset = np.sum(normal * p_first[starts], axis=1)
-    tolerance = KINK_TOLERANCE * first.pitch
-    for run, points, finite in ((first, p_first, finite_first), (second, p_second, finite_second)):
-        cell = run.track_cell
-        off_line = ~finite | (np.abs(np.sum(normal[cell] * points, axis=1) - offset[cell]) > tolerance[cell])
-        both &= ~_any_per_cell(off_line, cell, cells)
-        # L crosses the tracks (a CD's turns by 2.5°): the half-plane cut is then nearly the groove's own end
-        both &= np.abs(np.sum(normal * run.t_f, axis=1)) >= KINK_MIN_COS
-    rows = np.flatnonzero(both)
-    target = chunk[rows]
-    frames[target, 0, 9:11] = normal[rows]
-    frames[target, 0, 11] = offset[rows]
-    frames[target, 1, 9:11] = -normal[rows]
-    frames[target, 1, 11] = -offset[rows]
+    valid = (counts > 1) & (length > 0) & np.isfinite(length)
+    normal = np.stack([-direction[:, 1], direction[:, 0]], axis=1) / np.where(valid, length, 1.0)[:, None]
+    normal *= np.where(np.sum(normal * (-side * run.t_f), axis=1) < 0, -1.0, 1.0)[:, None]  # into the run
+    offset = np.sum(normal * points[starts], axis=1)
+    off_line = ~np.isfinite(along) | (np.abs(np.sum(normal[cell] * points, axis=1) - offset[cell])
+                                      > KINK_TOLERANCE * run.pitch[cell])
+    valid &= ~_any_per_cell(off_line, cell, cells) & (np.abs(np.sum(normal * run.t_f, axis=1)) >= KINK_MIN_COS)
+    return normal, offset, valid
 
 
 def _per_cell_extreme(ufunc, values, cell_of, cells, fill):
@@ -416,6 +430,7 @@ class Family:
     #: mi.Bool: the window straddles a kink line: the run above (A) holds the half-plane y·l >= h (y = x - x0)
     #: only, and a second run B of the same groove (direction b_dx, b_dy, pitch b_pitch, offset b_a0) the rest
     kink: object = None
+    lone: object = None  #: mi.Bool: at a kink, run A alone (the whole box on its side of its end line; no B)
     b_pitch: object = None
     b_dx: object = None
     b_dy: object = None
@@ -436,9 +451,10 @@ class _Slot(NamedTuple):
     offset: object  #: µm: signed distance a·n of its first track from x0 (n of the tracks' local frame)
     width: object
     depth: object  #: ±D
-    l_u: object  #: its kink line (cells): unit normal into the family's side, offset (zero: none)
+    l_u: object  #: its end line (cells): unit normal into the family's side, offset (zero: none)
     l_v: object
     l_offset: object
+    pitch_cells: object
 
 
 def find_family(grid, jac, sigma, active) -> Family:
@@ -464,6 +480,15 @@ def find_family(grid, jac, sigma, active) -> Family:
     signed = dr.select(det >= 0.0, 1.0, -1.0)
     kinks = grid.kink_count > 0  # (a Python choice: sets without kinks compile no kink code)
 
+    def box_range(cu, cv, n_u, n_v):
+        """``(min, max)`` of n·x over the window's box clipped to cell (cu, cv) (that cell's coordinates)."""
+        du, dv = gu - cu, gv - cv  # x0 in this cell's coordinates
+        box_u0, box_u1 = dr.maximum(du - extent_u, 0.0), dr.minimum(du + extent_u, 1.0)
+        box_v0, box_v1 = dr.maximum(dv - extent_v, 0.0), dr.minimum(dv + extent_v, 1.0)
+        positive_u, positive_v = n_u >= 0.0, n_v >= 0.0
+        return (n_u * dr.select(positive_u, box_u0, box_u1) + n_v * dr.select(positive_v, box_v0, box_v1),
+                n_u * dr.select(positive_u, box_u1, box_u0) + n_v * dr.select(positive_v, box_v1, box_v0))
+
     def slot(cu, cv, k, wanted) -> _Slot:
         """Slot k of cell (cu, cv) against the window's box clipped to that cell."""
         cell = mi.UInt32(mi.Int32(cv) * grid.cells_u + mi.Int32(cu))
@@ -472,11 +497,7 @@ def find_family(grid, jac, sigma, active) -> Family:
         f1 = dr.gather(mi.Vector4f, grid.family_frames, base + 1, wanted)  # o_last, s_lo, s_hi, W
         f2 = dr.gather(mi.Vector4f, grid.family_frames, base + 2, wanted)  # ±D, l_u, l_v, l_offset
         du, dv = gu - cu, gv - cv  # x0 in this cell's coordinates
-        box_u0, box_u1 = dr.maximum(du - extent_u, 0.0), dr.minimum(du + extent_u, 1.0)
-        box_v0, box_v1 = dr.maximum(dv - extent_v, 0.0), dr.minimum(dv + extent_v, 1.0)
-        positive_u, positive_v = f0.x >= 0.0, f0.y >= 0.0
-        box_lo = f0.x * dr.select(positive_u, box_u0, box_u1) + f0.y * dr.select(positive_v, box_v0, box_v1)
-        box_hi = f0.x * dr.select(positive_u, box_u1, box_u0) + f0.y * dr.select(positive_v, box_v1, box_v0)
+        box_lo, box_hi = box_range(cu, cv, f0.x, f0.y)
         s = f0.y * du - f0.x * dv  # along t = (n_v, -n_u)
         adj_n = dr.sqrt(dr.square(jac.j11 * f0.x - jac.j10 * f0.y) + dr.square(jac.j00 * f0.y - jac.j01 * f0.x))
         adj_t = dr.sqrt(dr.square(jac.j11 * f0.y + jac.j10 * f0.x) + dr.square(jac.j00 * f0.x + jac.j01 * f0.y))
@@ -487,12 +508,12 @@ def find_family(grid, jac, sigma, active) -> Family:
         gap = (1.0 - 2.0 * PITCH_TOLERANCE) * f0.w
         across = wanted & (f0.w > 0.0) & (box_lo >= f0.z - gap) & (box_hi <= f1.x + gap)
         below, above = s - along >= f1.y, s + along <= f1.z
-        # cut by a kink line: only the far end (away from the line, along t) must lie beyond the reach
+        # cut by its end line: only the far end (away from the line, along t) must lie beyond the reach
         into = f0.y * f2.y - f0.x * f2.z  # t·l
         cut = across & ((f2.y != 0.0) | (f2.z != 0.0)) & dr.select(into > 0.0, above, below)
         offset = signed * (f0.z - (f0.x * du + f0.y * dv)) * micrometres_per_cell
         return _Slot(across & below & above, cut, f0.x, f0.y, f0.w * micrometres_per_cell, offset, f1.w, f2.x,
-                     f2.y, f2.z, f2.w)
+                     f2.y, f2.z, f2.w, f0.w)
 
     # ---- only lanes whose own cell holds a family go on (whole SIMD packets elsewhere skip the rest)
     u = dr.floor(dr.clip(gu, 0.0, mi.Float(grid.cells_u - 1)))
@@ -502,72 +523,124 @@ def find_family(grid, jac, sigma, active) -> Family:
     candidate = usable & ((dr.gather(mi.Float, grid.family_frames, pitch_floats[0], usable) > 0.0)
                           | (dr.gather(mi.Float, grid.family_frames, pitch_floats[1], usable) > 0.0))
 
+    def same_run(other: _Slot, run: _Slot):
+        """``other`` (a slot of any cell, seen from x0) continues ``run``: same direction, pitch and groove,
+        offsets a whole number of pitches apart."""
+        same_way = dr.abs(other.n_u * run.n_v - other.n_v * run.n_u) < PARALLEL_SIN_KERNEL
+        flip = dr.select(other.n_u * run.n_u + other.n_v * run.n_v >= 0.0, 1.0, -1.0)
+        shift = (flip * other.offset - run.offset) * dr.rcp(dr.maximum(run.pitch, 1e-30))
+        return (same_way & (dr.abs(shift - dr.round(shift)) < PITCH_TOLERANCE_KERNEL)
+                & (dr.abs(other.pitch - run.pitch) < PITCH_TOLERANCE_KERNEL * run.pitch)
+                & (other.width == run.width) & (other.depth == run.depth))
+
+    def local_run(run: _Slot):
+        """The run's direction J t (t = (n_v, -n_u)) in the local frame and its nearest track's offset."""
+        ex, ey = jac.j00 * run.n_v - jac.j01 * run.n_u, jac.j10 * run.n_v - jac.j11 * run.n_u
+        inv = dr.rsqrt(dr.maximum(ex * ex + ey * ey, 1e-30))
+        return ex * inv, ey * inv, run.offset - run.pitch * dr.round(run.offset * dr.rcp(run.pitch))
+
+    corners = ((u0, v0), (u1, v0), (u0, v1), (u1, v1))
+
     def search(candidate):
         first = slot(u, v, 0, candidate)
         second = slot(u, v, 1, candidate & ~first.holds)
-        # a kink: the window in x0's own cell only, each run among its tracks up to the line (the slots'
-        # grooves agree: the tables checked)
-        kink = dr.zeros(mi.Bool)
-        if kinks:
-            kink = (~first.holds & ~second.holds & first.cut & second.cut & (u0 == u1) & (v0 == v1)
-                    & (sigma >= MIN_SIGMA_PER_PITCH * dr.maximum(first.pitch, second.pitch)))
-        own = _Slot(*(dr.select(first.holds | kink, a, b) for a, b in zip(first, second)))
+        own = _Slot(*(dr.select(first.holds, a, b) for a, b in zip(first, second)))
         eligible = own.holds & (sigma >= MIN_SIGMA_PER_PITCH * own.pitch)
 
-        # every cell of the window's box continues it (x0's own cell included: it matches itself)
-        inv_pitch = dr.rcp(dr.maximum(own.pitch, 1e-30))
-
-        def continues(other: _Slot):
-            same_way = dr.abs(other.n_u * own.n_v - other.n_v * own.n_u) < PARALLEL_SIN_KERNEL
-            flip = dr.select(other.n_u * own.n_u + other.n_v * own.n_v >= 0.0, 1.0, -1.0)
-            shift = (flip * other.offset - own.offset) * inv_pitch  # whole pitches apart
-            return (other.holds & same_way & (dr.abs(shift - dr.round(shift)) < PITCH_TOLERANCE_KERNEL)
-                    & (dr.abs(other.pitch - own.pitch) < PITCH_TOLERANCE_KERNEL * own.pitch)
-                    & (other.width == own.width) & (other.depth == own.depth))
-
         def neighbours(eligible):
-            for cu, cv in ((u0, v0), (u1, v0), (u0, v1), (u1, v1)):
+            """Every cell of the window's box continues the run (x0's own cell matches itself)."""
+            for cu, cv in corners:
                 wanted = eligible & ((cu != u) | (cv != v))
                 a = slot(cu, cv, 0, wanted)
-                matched = continues(a)
+                matched = a.holds & same_run(a, own)
                 b = slot(cu, cv, 1, wanted & ~matched)
-                eligible = eligible & (~wanted | matched | continues(b))
+                eligible = eligible & (~wanted | matched | (b.holds & same_run(b, own)))
             return (eligible,)
 
         # (whole SIMD packets whose boxes stay in their own cells skip this)
         leaves = eligible & ((u0 != u1) | (v0 != v1))
         eligible = dr.if_stmt((eligible,), leaves, neighbours, lambda eligible: (eligible,),
                               label="scratch_family_neighbours")[0]
-
-        def local_run(run: _Slot):
-            """The run's direction J t (t = (n_v, -n_u)) in the local frame and its nearest track's offset."""
-            ex, ey = jac.j00 * run.n_v - jac.j01 * run.n_u, jac.j10 * run.n_v - jac.j11 * run.n_u
-            inv = dr.rsqrt(dr.maximum(ex * ex + ey * ey, 1e-30))
-            return ex * inv, ey * inv, run.offset - run.pitch * dr.round(run.offset * dr.rcp(run.pitch))
-
         dx, dy, offset = local_run(own)
+        found = (eligible, dx, dy, own.pitch, offset, own.width, own.depth)
         if not kinks:
-            return eligible, dx, dy, own.pitch, offset, own.width, own.depth
-        kink &= ~eligible
-        b_dx, b_dy, b_a0 = local_run(second)
+            return found
+        # lanes without a run of their own may lie at a kink (found in any cell of the box)
+        kink = dr.if_stmt((candidate & ~eligible,), candidate & ~eligible, at_kink, no_kink, label="scratch_kink")
+        return tuple(dr.select(kink[0], k, f) for k, f in zip(kink[:7], found)) + kink[7:]
+
+    def at_kink(active):
+        """A kink holding the window (:func:`_end_lines`).  Some cell of the box holds two runs A and B that
+        share their end line (or one run A cut by its end line, with the whole box on its side: *lone*),
+        and in every cell of the box the part of the box on A's side of the line lies among A's tracks up
+        to the line (A continuing, cut by the same line, or running through with the part wholly on its
+        side), the same for B, and no other piece lies there (other runs end on the line from beyond)."""
+        found = lone = dr.zeros(mi.Bool)
+        run_a = run_b = None
+        ru, rv = u, v
+        for cu, cv in corners:
+            wanted = active & ~found
+            a = slot(cu, cv, 0, wanted)
+            b = slot(cu, cv, 1, wanted)
+            pair = (wanted & _on_line(b, a, 0.0, 0.0, -1.0) & (a.width == b.width) & (a.depth == b.depth)
+                    & (sigma >= MIN_SIGMA_PER_PITCH * dr.maximum(a.pitch, b.pitch)))
+            part_lo, _ = box_range(cu, cv, a.l_u, a.l_v)
+            single = (wanted & ~pair & a.cut & ~(b.pitch_cells > 0.0) & ((a.l_u != 0.0) | (a.l_v != 0.0))
+                      & (part_lo >= a.l_offset) & (sigma >= MIN_SIGMA_PER_PITCH * a.pitch))
+            here = pair | single
+            run_a = a if run_a is None else _Slot(*(dr.select(here, x, y) for x, y in zip(a, run_a)))
+            b = _Slot(*(dr.select(single, x, y) for x, y in zip(a, b)))  # (a lone run's B: valid numbers, no weight)
+            run_b = b if run_b is None else _Slot(*(dr.select(here, x, y) for x, y in zip(b, run_b)))
+            ru, rv = dr.select(here, cu, ru), dr.select(here, cv, rv)
+            lone = dr.select(here, single, lone)
+            found = found | here
+        kink = found
+        for cu, cv in corners:
+            shift_u, shift_v = cu - ru, cv - rv
+            a = slot(cu, cv, 0, kink)
+            b = slot(cu, cv, 1, kink)
+            part_lo, part_hi = box_range(cu, cv, run_a.l_u, run_a.l_v)
+            line = run_a.l_offset - (run_a.l_u * shift_u + run_a.l_v * shift_v)
+            a_side, b_side = part_lo >= line, part_hi <= line  # the part wholly on A's / B's side
+
+            def beyond(x, sign):  # x's tracks end on the line from the other side than ``sign``'s run's
+                return _on_line(x, run_a, shift_u, shift_v, -sign)
+
+            def covers(x, run, sign, side):  # x continues the run, cut by the line or wholly on its side
+                return same_run(x, run) & ((x.cut & _on_line(x, run_a, shift_u, shift_v, sign)) | (x.holds & side))
+
+            alone = ~(b.pitch_cells > 0.0)
+            a_covers_a, b_covers_a = covers(a, run_a, 1.0, a_side), covers(b, run_a, 1.0, a_side)
+            a_covers_b, b_covers_b = covers(a, run_b, -1.0, b_side), covers(b, run_b, -1.0, b_side)
+            on_a = a_side & ((a_covers_a & (alone | beyond(b, 1.0))) | (b_covers_a & beyond(a, 1.0)))
+            on_b = b_side & ((a_covers_b & (alone | beyond(b, -1.0))) | (b_covers_b & beyond(a, -1.0)))
+            ok = dr.select(lone, on_a, (a_covers_a & b_covers_b) | (a_covers_b & b_covers_a) | on_a | on_b)
+            kink = kink & ok
+
+        dx, dy, offset = local_run(run_a)
+        b_dx, b_dy, b_a0 = local_run(run_b)
         # the kink line in the local frame: normal ⟂ J t_L (t_L = (l_v, -l_u)), turned towards J l; its
         # distance from x0 through the UV Jacobian as for the tracks' offsets
-        lu, lv = own.l_u, own.l_v
+        lu, lv = run_a.l_u, run_a.l_v
         tx, ty = jac.j00 * lv - jac.j01 * lu, jac.j10 * lv - jac.j11 * lu
         towards = (jac.j00 * lu + jac.j01 * lv) * -ty + (jac.j10 * lu + jac.j11 * lv) * tx
         inv = dr.select(towards >= 0.0, 1.0, -1.0) * dr.rsqrt(dr.maximum(tx * tx + ty * ty, 1e-30))
         adj_l = dr.sqrt(dr.square(jac.j11 * lu - jac.j10 * lv) + dr.square(jac.j00 * lv - jac.j01 * lu))
-        h = ((own.l_offset - (lu * (gu - u) + lv * (gv - v))) * dr.abs(det) * dr.rcp(dr.maximum(adj_l, 1e-30))
-             * grid.cell_size)
+        h = ((run_a.l_offset - (lu * (gu - ru) + lv * (gv - rv))) * dr.abs(det)
+             * dr.rcp(dr.maximum(adj_l, 1e-30)) * grid.cell_size)
         l_x, l_y = -ty * inv, tx * inv
         # nearly across both runs where the lane sees them (a shear of the UV map turns the line obliquely)
-        kink &= ((dr.abs(l_x * dx + l_y * dy) >= KINK_MIN_COS) & (dr.abs(l_x * b_dx + l_y * b_dy) >= KINK_MIN_COS))
-        return (eligible | kink, dx, dy, own.pitch, offset, own.width, own.depth,
-                kink, second.pitch, b_dx, b_dy, b_a0, l_x, l_y, h)
+        kink = kink & ((dr.abs(l_x * dx + l_y * dy) >= KINK_MIN_COS) & (dr.abs(l_x * b_dx + l_y * b_dy) >= KINK_MIN_COS))
+        return (kink, dx, dy, run_a.pitch, offset, run_a.width, run_a.depth,
+                kink, lone, run_b.pitch, b_dx, b_dy, b_a0, l_x, l_y, h)
+
+    def no_kink(active):
+        zero = dr.zeros(mi.Float)
+        return (dr.zeros(mi.Bool),) + (zero,) * 6 + (dr.zeros(mi.Bool),) * 2 + (zero,) * 7
 
     def nothing(candidate):
         zero = dr.zeros(mi.Float)
-        kink = (dr.zeros(mi.Bool), zero, zero, zero, zero, zero, zero, zero) if kinks else ()
+        kink = (dr.zeros(mi.Bool), dr.zeros(mi.Bool), zero, zero, zero, zero, zero, zero, zero) if kinks else ()
         return (dr.zeros(mi.Bool), zero, zero, zero, zero, zero, zero) + kink
 
     found = dr.if_stmt((candidate,), candidate, search, nothing, label="scratch_family")
@@ -575,9 +648,19 @@ def find_family(grid, jac, sigma, active) -> Family:
     family = Family(eligible=eligible, dx=dx, dy=dy, pitch=pitch, a0=offset,
                     width=dr.maximum(width, profiles.MIN_WIDTH_UM), depth=dr.abs(depth), triangular=depth < 0.0)
     if kinks:
-        (family.kink, family.b_pitch, family.b_dx, family.b_dy, family.b_a0, family.l_x, family.l_y,
+        (family.kink, family.lone, family.b_pitch, family.b_dx, family.b_dy, family.b_a0, family.l_x, family.l_y,
          family.h) = found[7:]
     return family
+
+
+def _on_line(other: _Slot, run: _Slot, shift_u, shift_v, sign):
+    """``other``'s end line is ``sign`` × ``run``'s, ``run`` being stored in the cell (shift_u, shift_v)
+    cells before ``other``'s (a line n·x = c there is n·x = c - n·shift here)."""
+    offset = run.l_offset - (run.l_u * shift_u + run.l_v * shift_v)
+    return ((dr.abs(other.l_u - sign * run.l_u) < LINE_NORMAL_TOLERANCE)
+            & (dr.abs(other.l_v - sign * run.l_v) < LINE_NORMAL_TOLERANCE)
+            & (dr.abs(other.l_offset - sign * offset) < LINE_OFFSET_TOLERANCE * run.pitch_cells)
+            & ((run.l_u != 0.0) | (run.l_v != 0.0)))
 
 
 def _sinc(x):
@@ -630,7 +713,7 @@ def family_field(family: Family, xi_x, xi_y, k_z, sigma) -> Cx:
     # A body this heavy still costs the kernel where it never runs (on the grating, had it kinks: +30 % per
     # query as a symbolic branch, +12 % as this loop, measured), hence no kink code for sets without kinks
     # (find_family); the loop also traces the body once for both runs
-    turns = dr.select(family.kink, 2, 0)
+    turns = dr.select(family.kink, dr.select(family.lone, 1, 2), 0)
     _, re, im = dr.while_loop((dr.zeros(mi.UInt32), dr.zeros(kind), dr.zeros(kind)),
                               lambda i, re, im: i < turns, cut_run, label="scratch_family_kink")
     return Cx(dr.select(family.kink, re, full.re), dr.select(family.kink, im, full.im))
@@ -709,7 +792,7 @@ def run_energies(family: Family, sigma):
         return a, dr.zeros(mi.Float)
     side = 0.5 - 0.5 * dr.erf(family.h * dr.rcp(sigma))  # share of w² on A's side, y·l >= h
     b = _run_energy(family, family.b_pitch, family.b_a0, sigma)
-    return dr.select(family.kink, a * side, a), dr.select(family.kink, b * (1.0 - side), 0.0)
+    return dr.select(family.kink, a * side, a), dr.select(family.kink & ~family.lone, b * (1.0 - side), 0.0)
 
 
 def _run_energy(family: Family, pitch, a0, sigma):
