@@ -99,7 +99,7 @@ KINK_TOLERANCE = 1e-2
 #: less than this many pitches (each is fitted to its own tracks' float32 ends)
 LINE_NORMAL_TOLERANCE = 1e-4
 LINE_OFFSET_TOLERANCE = 2 * KINK_TOLERANCE
-#: Smallest |cos| between the kink line's normal and the tracks (in the cell and where a lane sees them):
+#: Smallest |cos| between an end line's normal and the tracks (in the cell and where a lane sees them):
 #: the closed form cuts each run along the line where the scan ends each piece square, and the two
 #: differ by wedges that grow with the angle (~5e-4 relative L2 at 9°, ~1e-3 at 30°, tests/bsdf/test_periodic.py).
 KINK_MIN_COS = 0.98
@@ -108,8 +108,8 @@ KINK_MIN_COS = 0.98
 HALF_PLANE_SIGN = -1.0
 #: Families per cell (a CD cell with a chord's kink holds two).
 SLOTS = 2
-#: Floats per family: n_u, n_v, o_first, pitch | o_last, s_lo, s_hi, W | ±D, l_u, l_v, l_offset (a kink
-#: line's normal into the family's side and its offset, :func:`_kinks`; zero where none).
+#: Floats per family: n_u, n_v, o_first, pitch | o_last, s_lo, s_hi, W | ±D, l_u, l_v, l_offset (its end
+#: line's normal into the family's side and its offset, :func:`_end_lines`; zero where none).
 FAMILY_FLOATS = 12
 #: References per chunk of the numpy build (bounds its temporaries, ~150 bytes per reference) ...
 CHUNK_REFERENCES = 1 << 19
@@ -301,7 +301,7 @@ def _family(slot, member, t_f, other, local, a, e, t, runs_on, width, depth, chu
 
     keep = has & ~bad & (s_hi > s_lo) & (pitch > 0)
     # the side along the tracks where the other family lies (+1: beyond the tracks' upper ends), 0: none
-    # or both sides; a run with the other family on one side only may end on a kink line (_kinks)
+    # or both sides; a run with the other family on one side only may end on a kink line (_end_lines)
     other_side = np.zeros(cells, np.int8)
     if len(jdx):
         up = _any_per_cell(above, oc, cells)
