@@ -196,21 +196,26 @@ def test04_small_jitter_stays_periodic_within_its_phase_error():
     assert 1e-4 < error < 1e-2
 
 
-def test05_sample_weight_is_eval_over_pdf_inside_a_family():
-    bsdf = load(grating(ref.TRI))
+def assert_sample_weight_is_eval_over_pdf(bsdf, si, lanes_used, rng, share):
+    """On ``lanes_used`` (at least ``share`` of them with a sample): ``sample``'s pdf is ``eval_pdf``'s at
+    the sampled direction and its weight is eval/pdf."""
     ctx = mi.BSDFContext()
-    rng = np.random.default_rng(7)
-    count = 1 << 13
-    si, _ = lanes(count, rng)
-    inside = eligible(bsdf, si)
+    count = dr.width(si)
     bs, weight = bsdf.sample(ctx, si, shading.floats(rng.random(count)),
                              mi.Point2f(shading.floats(rng.random(count)), shading.floats(rng.random(count))))
     value, pdf = bsdf.eval_pdf(ctx, si, bs.wo)
     weight, value, pdf, bs_pdf = (np.asarray(x, dtype=np.float64) for x in (weight, value, pdf, bs.pdf))
-    valid = (bs_pdf > 0) & inside
-    assert valid.mean() > 0.5
+    valid = (bs_pdf > 0) & lanes_used
+    assert valid.mean() > share
     np.testing.assert_allclose(bs_pdf[valid], pdf[valid], rtol=1e-4)
     np.testing.assert_allclose(weight[:, valid], value[:, valid] / pdf[valid], rtol=1e-4, atol=1e-7)
+
+
+def test05_sample_weight_is_eval_over_pdf_inside_a_family():
+    bsdf = load(grating(ref.TRI))
+    rng = np.random.default_rng(7)
+    si, _ = lanes(1 << 13, rng)
+    assert_sample_weight_is_eval_over_pdf(bsdf, si, eligible(bsdf, si), rng, 0.5)
 
 
 def test06_incoherent_and_bounded_modes_scan():
@@ -326,19 +331,9 @@ def test12_sample_weight_is_eval_over_pdf_at_a_kink(kink_x, x):
     """``sample`` draws one run's line in proportion to its cut weight: its pdf is the mixture's (and a
     lone run's own, near a cell's edge)."""
     bsdf = load(kinked_grating(ref.TRI, kink_x=kink_x))
-    ctx = mi.BSDFContext()
     rng = np.random.default_rng(13)
-    count = 1 << 13
-    si, _ = lanes(count, rng, x=x, y=KINK_LANES["y"])
-    _, kink = eligible(bsdf, si, kink=True)
-    bs, weight = bsdf.sample(ctx, si, shading.floats(rng.random(count)),
-                             mi.Point2f(shading.floats(rng.random(count)), shading.floats(rng.random(count))))
-    value, pdf = bsdf.eval_pdf(ctx, si, bs.wo)
-    weight, value, pdf, bs_pdf = (np.asarray(x, dtype=np.float64) for x in (weight, value, pdf, bs.pdf))
-    valid = (bs_pdf > 0) & kink
-    assert valid.mean() > 0.3
-    np.testing.assert_allclose(bs_pdf[valid], pdf[valid], rtol=1e-4)
-    np.testing.assert_allclose(weight[:, valid], value[:, valid] / pdf[valid], rtol=1e-4, atol=1e-7)
+    si, _ = lanes(1 << 13, rng, x=x, y=KINK_LANES["y"])
+    assert_sample_weight_is_eval_over_pdf(bsdf, si, eligible(bsdf, si, kink=True)[1], rng, 0.3)
 
 
 @pytest.mark.parametrize("profile,uv_map", [(ref.RECT, "plain"), (ref.TRI, "shear")])
