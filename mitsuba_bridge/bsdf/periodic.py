@@ -540,6 +540,8 @@ def find_family(grid, jac, sigma, active) -> Family:
         return ex * inv, ey * inv, run.offset - run.pitch * dr.round(run.offset * dr.rcp(run.pitch))
 
     corners = ((u0, v0), (u1, v0), (u0, v1), (u1, v1))
+    #: whether each corner is a cell not listed before it (a box within one cell column or row repeats them)
+    new_corner = (u0 == u0, u1 != u0, v1 != v0, (u1 != u0) & (v1 != v0))
 
     def search(candidate):
         first = slot(u, v, 0, candidate)
@@ -578,8 +580,8 @@ def find_family(grid, jac, sigma, active) -> Family:
         found = lone = dr.zeros(mi.Bool)
         run_a = run_b = None
         ru, rv = u, v
-        for cu, cv in corners:
-            wanted = active & ~found
+        for (cu, cv), new in zip(corners, new_corner):
+            wanted = active & ~found & new
             a = slot(cu, cv, 0, wanted)
             b = slot(cu, cv, 1, wanted)
             pair = (wanted & _on_line(b, a, 0.0, 0.0, -1.0) & (a.width == b.width) & (a.depth == b.depth)
@@ -595,10 +597,10 @@ def find_family(grid, jac, sigma, active) -> Family:
             lone = dr.select(here, single, lone)
             found = found | here
         kink = found
-        for cu, cv in corners:
+        for (cu, cv), new in zip(corners, new_corner):
             shift_u, shift_v = cu - ru, cv - rv
-            a = slot(cu, cv, 0, kink)
-            b = slot(cu, cv, 1, kink)
+            a = slot(cu, cv, 0, kink & new)
+            b = slot(cu, cv, 1, kink & new)
             part_lo, part_hi = box_range(cu, cv, run_a.l_u, run_a.l_v)
             line = run_a.l_offset - (run_a.l_u * shift_u + run_a.l_v * shift_v)
             a_side, b_side = part_lo >= line, part_hi <= line  # the part wholly on A's / B's side
@@ -615,7 +617,7 @@ def find_family(grid, jac, sigma, active) -> Family:
             on_a = a_side & ((a_covers_a & (alone | beyond(b, 1.0))) | (b_covers_a & beyond(a, 1.0)))
             on_b = b_side & ((a_covers_b & (alone | beyond(b, -1.0))) | (b_covers_b & beyond(a, -1.0)))
             ok = dr.select(lone, on_a, (a_covers_a & b_covers_b) | (a_covers_b & b_covers_a) | on_a | on_b)
-            kink = kink & ok
+            kink = kink & (ok | ~new)
 
         dx, dy, offset = local_run(run_a)
         b_dx, b_dy, b_a0 = local_run(run_b)
@@ -745,8 +747,8 @@ def _run_field(family: Family, pitch, dx, dy, a0, xi_x, xi_y, kappa, sigma, cut=
         mu = order * inv_pitch
         eta = nu_perp + mu
         phase = expi((2.0 * math.pi) * order * a0 * inv_pitch)
-        if cut is None:
-            window = (gauss * dr.exp((-2.0 * math.pi ** 2) * sigma2 * eta * eta)) * along
+        if cut is None:  # (the along factor is common to all orders: applied once, below)
+            window = gauss * dr.exp((-2.0 * math.pi ** 2) * sigma2 * eta * eta)
             return groove_transform(family, mu, kappa) * phase * window
         k_l = nu_par * l_t + eta * l_n
         k_c = eta * l_t - nu_par * l_n
@@ -762,7 +764,7 @@ def _run_field(family: Family, pitch, dx, dy, a0, xi_x, xi_y, kappa, sigma, cut=
 
     wide = sigma * spacing < ONE_ORDER_SIGMA_PER_PITCH * pitch
     total = order_term(nearest) + Cx(*dr.if_stmt((nearest,), wide, neighbours, none, label="scratch_family_orders"))
-    return total * inv_pitch
+    return total * (inv_pitch if cut is not None else along * inv_pitch)
 
 
 def _half_plane(k, h, sigma) -> Cx:
