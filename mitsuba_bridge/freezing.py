@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import re
 
-from .render import RenderInterrupted, interruption_in
+from .render import raise_if_interrupted
 
 __all__ = ["FrozenRender", "mitsuba_globals", "unreachable_variable"]
 
@@ -134,11 +134,14 @@ class FrozenRender:
                 # An opaque seed: a literal one would be recorded again as soon as it changes.
                 return self._functions[key](scene, dr.opaque(mi.UInt32, seed), handles)
             except RuntimeError as error:
-                if interruption_in(error):  # Ctrl-C while recording: not the recording's fault
-                    raise RenderInterrupted("interrupted while rendering") from error
+                raise_if_interrupted(error)  # Ctrl-C while recording: not the recording's fault
                 self.enabled, self._functions = False, {}
                 self.failure = _chain(error)
-        return mi.render(scene, sensor=sensor, spp=spp, seed=seed)
+        try:
+            return mi.render(scene, sensor=sensor, spp=spp, seed=seed)
+        except RuntimeError as error:
+            raise_if_interrupted(error)
+            raise
 
 
 def _chain(error: BaseException) -> str:

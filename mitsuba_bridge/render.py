@@ -26,7 +26,7 @@ from .schedule import MAX_SAMPLES_PER_PASS, Chunk, PairwiseSum, ScheduleError, p
 
 __all__ = ["Progress", "Refresh", "render_passes", "render_chunks", "render_image", "film_pixels", "pass_seed",
            "sample_schedule", "Chunk", "MAX_SAMPLES_PER_PASS", "NotEnoughMemory", "ScheduleError",
-           "RenderInterrupted", "render_whole", "interruption_in"]
+           "RenderInterrupted", "render_whole", "interruption_in", "raise_if_interrupted"]
 
 
 class RenderInterrupted(KeyboardInterrupt):
@@ -48,6 +48,13 @@ def interruption_in(error: BaseException | None) -> bool:
             return True
         error = error.__cause__
     return False
+
+
+def raise_if_interrupted(error: BaseException) -> None:
+    """Raise :class:`RenderInterrupted` from ``error`` if it is a Ctrl-C in disguise (:func:`interruption_in`);
+    for the ``except RuntimeError`` around every ``mi.render`` call."""
+    if interruption_in(error):
+        raise RenderInterrupted("interrupted while rendering") from error
 
 
 #: The last line of a Python traceback that Mitsuba's parser copies into its message.
@@ -73,9 +80,8 @@ def render_whole(scene, **arguments):
     try:
         image = mi.render(scene, **arguments)
     except RuntimeError as error:
-        if not interruption_in(error):
-            raise
-        raise RenderInterrupted("interrupted while rendering") from error
+        raise_if_interrupted(error)
+        raise
     if scene.integrator().should_stop():
         raise RenderInterrupted("Mitsuba stopped the render early (interrupted)")
     return image

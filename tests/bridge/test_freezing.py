@@ -99,9 +99,10 @@ def test_a_ctrl_c_while_recording_is_handed_on_and_keeps_freezing_enabled(varian
     one (which would switch freezing off for the session), but end the pass as an interruption."""
     from scratch_iridescence.mitsuba_bridge import render
 
-    frozen = freezing.FrozenRender()
+    frozen, traced = freezing.FrozenRender(), freezing.FrozenRender(enabled=False)
     with interrupting_scene() as scene:
-        with pytest.raises(render.RenderInterrupted):
-            frozen(scene, 0, 1, 0)
+        for passes in (frozen, traced):  # (the plain mi.render of a session without freezing too)
+            with pytest.raises(render.RenderInterrupted):
+                passes(scene, 0, 1, 0)
         del scene
     assert frozen.enabled and frozen.failure is None
