@@ -315,6 +315,11 @@ def _automatic_cell_size(a, b, lo, hi, floor) -> float:
     # never longer than a typical piece: a cell would list collinear pieces of one scratch, which
     # share their offset and are all scanned
     h = min(_power_of_two(float((hi - lo).max())), 0.5 * _power_of_two(typical_piece))
+    if 2.0 * h > typical_piece and _spread_tests(a, b, lo, hi, h) <= SPREAD_TESTS:
+        # Nearly parallel pieces already at the largest size allowed (a grating): the halving below
+        # would list them at ever finer cells (seconds for long grooves), and the doubling after it
+        # climb back to this size, as the offset spread grows with the cell.
+        return h
     density = _references_per_occupied_cell(a, b, lo, hi, h)
     while h > floor and density > TARGET_PER_CELL and spans / (0.5 * h) < SEARCH_REFERENCES:
         finer = _references_per_occupied_cell(a, b, lo, hi, 0.5 * h)

@@ -103,6 +103,23 @@ def test07_clustered_scratches_do_not_shrink_cells_below_their_spacing():
     assert t.cell_size >= 1.0 / 256
 
 
+def test07b_a_grating_sizes_its_cells_without_listing_its_grooves_at_finer_cells(monkeypatch):
+    # Fig. 9's bands: 400 grooves at a 2.5e-5 pitch, 0.7 long.  Halving the cells down to the pitch and
+    # doubling back (the search for sets of any directions) listed the grooves at every size on the way:
+    # 3 s of the 3.4 s load.  Nearly parallel pieces at the largest allowed size stop the search there.
+    from scratch_iridescence.mitsuba_bridge.bsdf import tables
+
+    y = 0.4 + 2.5e-5 * np.arange(400)
+    grating = ScratchSet.from_polylines([np.array([[0.15, v], [0.85, v]]) for v in y], width=1e-6, depth=1e-6)
+    listed_at = []
+    real = tables.cell_references
+    monkeypatch.setattr(tables, "cell_references", lambda a, b, h, *rest: listed_at.append(h) or real(a, b, h, *rest))
+    t = build_tables(grating)
+    assert t.cell_size == 2.0 ** -7  # half the longest piece (MAX_PIECE_UV): the size the full search ends at
+    assert min(listed_at) == t.cell_size  # (no listing at finer cells)
+    assert len(listed_at) == 1  # the spread test only (the table lists its references itself)
+
+
 def test08_in_memory_values_round_trip_bit_for_bit(plate):
     values = memory.to_tensors(plate)
     assert set(values) == set(memory.KEYS)
