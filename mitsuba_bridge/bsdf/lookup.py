@@ -76,6 +76,9 @@ class Grid:
     family_count: int = 0  #: periodic families in all (to_string)
     #: cells whose families meet on a kink line (a Python choice too: none, and the kernel has no kink code)
     kink_count: int = 0
+    #: mi.Float, 2 per piece: how far its groove runs straight on before its start and after its end, in
+    #: units of the piece's own length (:func:`.tables.continuations`; None: not uploaded)
+    continuation: object = None
 
     @property
     def periodic(self) -> bool:
@@ -83,9 +86,10 @@ class Grid:
         return self.family_frames is not None
 
     @classmethod
-    def upload(cls, tables: GridTables, periodic: bool = True) -> "Grid":
+    def upload(cls, tables: GridTables, periodic: bool = True, continuation: bool = False) -> "Grid":
         """The tables as Dr.Jit arrays; ``periodic``: also find their periodic families (dense sets only;
-        a model that never sums them in closed form, e.g. the incoherent one, saves their build)."""
+        a model that never sums them in closed form saves their build); ``continuation``: also upload
+        how far each piece's groove runs straight on (the incoherent model joins such pieces)."""
         bucketed = references_per_occupied_cell(tables.cell_start) > BUCKETED_ABOVE
         if bucketed:
             scan_frames, cell_bucket, bucket_start = offset_buckets(tables.cell_start, tables.offsets,
@@ -120,7 +124,18 @@ class Grid:
             family_frames=None if families is None else _owned(mi.Float, families.frames.ravel()),
             cell_size=dr.opaque(mi.Float, tables.cell_size),
             family_count=0 if families is None else families.families,
-            kink_count=0 if families is None else families.kinks)
+            kink_count=0 if families is None else families.kinks,
+            continuation=_owned(mi.Float, _relative_continuation(tables).ravel()) if continuation else None)
+
+
+def _relative_continuation(tables: GridTables) -> np.ndarray:
+    """``tables.continuation`` in units of each piece's own UV length (the kernel knows that in µm)."""
+    if tables.continuation is None or tables.piece_count == 0:  # (one dummy row: see tables._empty_tables)
+        return aligned(np.zeros((max(tables.piece_count, 1), 2), np.float32))
+    rows = tables.segments[:tables.piece_count]
+    length = np.hypot(rows[:, 4].astype(np.float64), rows[:, 5].astype(np.float64))
+    ratio = tables.continuation[:tables.piece_count] / np.where(length > 0.0, length, 1.0)[:, None]
+    return aligned(ratio.astype(np.float32))
 
 
 def references_per_occupied_cell(cell_start) -> float:

@@ -22,8 +22,8 @@ from .energy import albedo_excess
 from .fresnel import fresnel_conductor
 from .lookup import Grid, for_each_crossing, for_each_segment, jacobian, replay_pieces, segment_at
 from .overlap import crossing_correction
-from .periodic import family_field, find_family, run_energies
-from .segment import SegmentGeometry, amplitude, frequencies
+from .periodic import MAX_INCOHERENT_WIDTH_SIGMAS, family_field, family_intensity, find_family, run_energies
+from .segment import SegmentGeometry, amplitude, frequencies, incoherent_intensity
 from .triples import add_triples
 from .window import mirror_lobe
 
@@ -92,21 +92,25 @@ class Model:
     @staticmethod
     def sums_families(coherent: bool, depth_phase: str) -> bool:
         """Whether a model of these settings sums periodic families in closed form (:mod:`.periodic`):
-        coherent mode only (the incoherent sum of intensities has no such closed form), and not with the
-        "bounded" depth phase (its albedo terms are summed piece by piece)."""
-        return coherent and depth_phase != "bounded"
+        not the coherent "bounded" depth phase (its albedo terms are summed piece by piece)."""
+        return not (coherent and depth_phase == "bounded")
 
     def _family(self, jac, active):
         """The periodic family of each lane's window (:mod:`.periodic`), or None where none is used."""
         if not (self.periodic and self.grid.periodic and self.sums_families(self.coherent, self.depth_phase)):
             return None
-        return find_family(self.grid, jac, self.sigma, active)
+        if self.coherent:
+            return find_family(self.grid, jac, self.sigma, active)
+        # incoherent: a plain run only, of grooves narrow enough for its quadrature (family_intensity)
+        family = find_family(self.grid, jac, self.sigma, active, kinks=False)
+        family.eligible &= family.width <= MAX_INCOHERENT_WIDTH_SIGMAS * self.sigma
+        return family
 
     def _family_weights(self, family, kz0):
         """The selection weights of its runs' tracks (hero wavelength): A's, and B's at a kink (else 0);
         0 where the lane has no family."""
         kappa = kz0 * family.depth
-        groove = sampling.groove_energy(family.triangular, kappa, True)
+        groove = sampling.groove_energy(family.triangular, kappa, self.coherent)
         a, b = run_energies(family, self.sigma)
         return dr.select(family.eligible, a * groove, 0.0), dr.select(family.eligible, b * groove, 0.0)
 
@@ -130,6 +134,10 @@ class Model:
         s = family_field(family, xi_x, xi_y, k_z, self.sigma)
         return mi.Spectrum(lobe + s.re), mi.Spectrum(s.im)
 
+    def _family_intensity(self, family, xi_x, xi_y, k_z):
+        return (mi.Spectrum(family_intensity(family, xi_x, xi_y, k_z, self.sigma)),
+                mi.Float(run_energies(family, self.sigma)[0]))
+
     @staticmethod
     def _family_line(family, second=False):
         """Its tracks as the sampler sees a segment (direction, width, depth, profile); ``second``: the
@@ -140,6 +148,14 @@ class Model:
             a0, dx, dy = (dr.select(second, b, a) for a, b in ((a0, family.b_a0), (dx, family.b_dx), (dy, family.b_dy)))
         return SegmentGeometry(c=zero, length=zero, a_perp=a0, dx=dx, dy=dy,
                                width=family.width, depth=family.depth, triangular=family.triangular)
+
+    def _runs_on(self, segment, piece):
+        """How far (µm) the piece's groove runs straight on before its start and after its end."""
+        if self.grid.continuation is None:
+            zero = dr.zeros(mi.Float)
+            return zero, zero
+        ratio = dr.gather(mi.Vector2f, self.grid.continuation, piece)
+        return ratio.x * segment.length, ratio.y * segment.length
 
     # --------------------------------------------------------- evaluation
     def evaluate(self, si, wo, *, has_glossy=True, has_diffuse=True, want_value=True, want_pdf=True,
@@ -182,9 +198,12 @@ class Model:
         if family is not None and has_glossy:  # lanes inside a periodic family: its closed form, no search
             inside = family.eligible
             scanning &= ~inside
-            if want_value:  # (whole SIMD packets outside every family skip it)
+            if want_value and coherent:  # (whole SIMD packets outside every family skip it)
                 field = dr.if_stmt((lobe,), inside, lambda lobe: self._family_field(family, lobe, xi_x, xi_y, k_z),
                                    lambda lobe: (lobe, zero_s), label="scratch_family_field")
+            elif want_value:  # incoherent: (Σ|S'|², Σ ε) as the scan below sums them
+                field = dr.if_stmt((zero_f,), inside, lambda _: self._family_intensity(family, xi_x, xi_y, k_z),
+                                   lambda _: (zero_s, zero_f), label="scratch_family_intensity")
             if want_pdf:
                 w_a, w_b = self._family_weights(family, kz0)
                 energy0 = w_a + w_b
@@ -196,8 +215,8 @@ class Model:
         def body(segment, piece, state):
             (a, b), energy, density, excess = state
             if want_value and has_glossy:
-                s = amplitude(segment, xi_x, xi_y, k_z, sigma, coherent=coherent)
                 if coherent:
+                    s = amplitude(segment, xi_x, xi_y, k_z, sigma)
                     a, b = spectrum(a + s.re), spectrum(b + s.im)
                     if self.height_field:
                         def add_crossing(partner, partner_piece, crossing_uv, field):
@@ -210,8 +229,10 @@ class Model:
 
                         a, b = for_each_crossing(self.grid, jac, piece, segment, WINDOW_RADIUS_SIGMAS * sigma, (a, b),
                                                  add_crossing)
-                else:
-                    a, b = spectrum(a + s.abs2()), b + sampling.window_energy(segment, sigma)
+                else:  # Σ|S'|² over straight segments, pieces of one joined (segment.incoherent_intensity)
+                    before, after = self._runs_on(segment, piece)
+                    a = spectrum(a + incoherent_intensity(segment, xi_x, xi_y, k_z, sigma, before, after))
+                    b = b + sampling.window_energy(segment, sigma)
                 if bounded:
                     e_i, e_o = albedo_excess(segment, wi, wo, wavelength, sigma)
                     excess = (spectrum(excess[0] + e_i), spectrum(excess[1] + e_o))

@@ -41,6 +41,10 @@ window across the line (its box in up to 2 × 2 cells) sums each run cut by its 
 Faddeeva evaluation per order, docs/model.md §3.5), and ``sample`` draws either run's line in
 proportion to its cut weight; a window near the line but wholly on one side sums that run cut alone.
 Sets without kinks compile none of this.
+
+**Incoherent mode** (:func:`family_intensity`): the tracks' intensities sum by the same Poisson formula
+to the order 0 alone, the squared along factor times (σ/P) the squared groove transform averaged over
+the squared window's transform (4-point Gauss–Hermite; docs/model.md §3.5); kinks scan there.
 Units as everywhere in the kernels: µm, 1/µm.
 """
 from __future__ import annotations
@@ -60,8 +64,8 @@ from .complexmath import Cx, expi
 from .faddeeva import faddeeva
 from .references import aligned
 
-__all__ = ["PeriodicTables", "periodic_families", "Family", "find_family", "family_field", "run_energies",
-           "MIN_TRACKS", "ACROSS_SIGMAS", "ALONG_SIGMAS"]
+__all__ = ["PeriodicTables", "periodic_families", "Family", "find_family", "family_field", "family_intensity",
+           "run_energies", "MIN_TRACKS", "ACROSS_SIGMAS", "ALONG_SIGMAS"]
 
 #: Fewest tracks in a family (fewer: the scan is as cheap).
 MIN_TRACKS = 8
@@ -457,8 +461,9 @@ class _Slot(NamedTuple):
     pitch_cells: object
 
 
-def find_family(grid, jac, sigma, active) -> Family:
-    """The family whose tracks fill x0's window, if any (module docstring).
+def find_family(grid, jac, sigma, active, kinks: bool = True) -> Family:
+    """The family whose tracks fill x0's window, if any (module docstring); ``kinks=False``: not at a
+    kink (the incoherent mode has no closed form there).
 
     The window's box may reach into the neighbouring cells (at most 2 × 2 cells): each cell it touches
     must hold the same run (same direction, pitch and groove, offsets a whole number of pitches apart)
@@ -478,7 +483,7 @@ def find_family(grid, jac, sigma, active) -> Family:
     usable &= ((u0 >= 0.0) & (v0 >= 0.0) & (u1 < mi.Float(grid.cells_u)) & (v1 < mi.Float(grid.cells_v))
                & (u1 - u0 <= 1.0) & (v1 - v0 <= 1.0) & dr.isfinite(extent_u) & dr.isfinite(extent_v))
     signed = dr.select(det >= 0.0, 1.0, -1.0)
-    kinks = grid.kink_count > 0  # (a Python choice: sets without kinks compile no kink code)
+    kinks = kinks and grid.kink_count > 0  # (a Python choice: sets without kinks compile no kink code)
 
     def box_range(cu, cv, n_u, n_v):
         """``(min, max)`` of n·x over the window's box clipped to cell (cu, cv) (that cell's coordinates)."""
@@ -669,14 +674,16 @@ def _sinc(x):
     return dr.select(dr.abs(x) < 1e-4, 1.0 - x * x * (1.0 / 6.0), dr.sin(x) / x)
 
 
-def groove_transform(family: Family, mu, kappa) -> Cx:
-    """``G(μ) = ∫ (e^{iκp(v)} - 1) e^{2πiμv} dv`` over one groove (µm), per wavelength; the V-groove's
-    facets cost only in SIMD packets that hold one."""
+def groove_transform(family: Family, mu, kappa, coherent: bool = True) -> Cx:
+    """``G(μ) = ∫ (e^{iκp(v)} - 1) e^{2πiμv} dv`` over one groove (µm), per wavelength; ``coherent=False``:
+    the transform of ``e^{iκp(v)}`` over the groove instead (the incoherent mode's, docs/model.md §4.2).
+    The V-groove's facets cost only in SIMD packets that hold one."""
     width = family.width
     kind = type(mu)  # (the branches' arithmetic may widen the type; both must return the same one)
+    box = 1.0 if coherent else 0.0
 
     def flat(mu, kappa):
-        g = (expi(kappa) - 1.0) * (width * _sinc(math.pi * mu * width))
+        g = (expi(kappa) - box) * (width * _sinc(math.pi * mu * width))
         return kind(g.re), kind(g.im)
 
     def v_groove(mu, kappa):  # two facets of phase κ ± (2κ/W) v, less the box
@@ -685,7 +692,9 @@ def groove_transform(family: Family, mu, kappa) -> Cx:
         minus = (2.0 * math.pi) * mu - 2.0 * kappa / width
         facets = (expi(kappa - plus * quarter) * _sinc(plus * quarter)
                   + expi(kappa + minus * quarter) * _sinc(minus * quarter))
-        g = facets * (0.5 * width) - width * _sinc(math.pi * mu * width)
+        g = facets * (0.5 * width)
+        if coherent:
+            g = g - width * _sinc(math.pi * mu * width)
         return kind(g.re), kind(g.im)
 
     re, im = dr.if_stmt((mu, kappa), family.triangular, v_groove, flat, label="scratch_family_groove")
@@ -719,6 +728,34 @@ def family_field(family: Family, xi_x, xi_y, k_z, sigma) -> Cx:
     _, re, im = dr.while_loop((dr.zeros(mi.UInt32), dr.zeros(kind), dr.zeros(kind)),
                               lambda i, re, im: i < turns, cut_run, label="scratch_family_kink")
     return Cx(dr.select(family.kink, re, full.re), dr.select(family.kink, im, full.im))
+
+
+#: Gauss–Hermite nodes and weights (4 points) of the incoherent closed form's average over the squared
+#: window's transform (:func:`family_intensity`) ...
+HERMITE_NODES = (-1.6506801238857845, -0.5246476232752904, 0.5246476232752904, 1.6506801238857845)
+HERMITE_WEIGHTS = (0.08131283544724518, 0.8049140900055128, 0.8049140900055128, 0.08131283544724518)
+#: ... exact to 3e-4 (relative L2 over ν⊥) for grooves up to this many σ wide, to 1e-6 up to one σ;
+#: wider grooves scan (incoherent mode only).
+MAX_INCOHERENT_WIDTH_SIGMAS = 2.0
+
+
+def family_intensity(family: Family, xi_x, xi_y, k_z, sigma):
+    """``Σ_n |S'_n(ξ)|²`` over the family's infinite run: the incoherent mode's closed form (docs/model.md
+    §3.5), per wavelength.
+
+    Poisson summation over the tracks' offsets leaves the order m = 0 alone (the others carry
+    e^{-π²σ²m²/P²}, below 5e-5 where σ >= P): the along factor's square times
+    (1/P) ∫ |A'(ν⊥; a)|² da = (σ√π/P) E[|G'(ν⊥ + η)|²] over η ~ N(0, 1/(8π²σ²)), the squared window's
+    transform, which a 4-point Gauss–Hermite rule averages (``MAX_INCOHERENT_WIDTH_SIGMAS``)."""
+    kappa = k_z * family.depth
+    nu_par = xi_x * family.dx + xi_y * family.dy
+    nu_perp = xi_y * family.dx - xi_x * family.dy
+    spread = 1.0 / (2.0 * math.pi) * dr.rcp(sigma)  # √2 × the std of η
+    total = dr.zeros(type(xi_x))
+    for node, weight in zip(HERMITE_NODES, HERMITE_WEIGHTS):
+        total += weight * groove_transform(family, nu_perp + node * spread, kappa, coherent=False).abs2()
+    along2 = (2.0 * math.pi) * sigma * sigma * dr.exp((-4.0 * math.pi ** 2) * sigma * sigma * nu_par * nu_par)
+    return along2 * (sigma * dr.rcp(family.pitch)) * total
 
 
 def _run_field(family: Family, pitch, dx, dy, a0, xi_x, xi_y, kappa, sigma, cut=None) -> Cx:

@@ -235,7 +235,8 @@ def _make_class() -> type:
                                              crossings=self._height_field)
             self.tables = self.table_cache.tables
             self.scratch_count = scratches.count
-            self.grid = Grid.upload(self.tables, periodic=Model.sums_families(self.coherent, self.depth_phase))
+            self.grid = Grid.upload(self.tables, periodic=Model.sums_families(self.coherent, self.depth_phase),
+                                    continuation=not self.coherent)
             self._rebuild_model()
 
         @property

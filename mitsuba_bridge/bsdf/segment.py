@@ -18,9 +18,9 @@ import drjit as dr
 
 from . import profiles
 from .complexmath import Cx
-from .window import window_integral
+from .window import piece_and_run_integrals, window_integral
 
-__all__ = ["SegmentGeometry", "amplitude", "frequencies"]
+__all__ = ["SegmentGeometry", "amplitude", "frequencies", "incoherent_intensity"]
 
 
 class SegmentGeometry(NamedTuple):
@@ -77,3 +77,17 @@ def amplitude(segment: SegmentGeometry, xi_x, xi_y, k_z, sigma, *, coherent: boo
     nu_par, nu_perp = frequencies(segment, xi_x, xi_y)
     along = window_integral(segment.c, segment.c + segment.length, nu_par, sigma)
     return along * cross_section(segment, nu_perp, k_z * segment.depth, sigma, coherent)
+
+
+def incoherent_intensity(segment: SegmentGeometry, xi_x, xi_y, k_z, sigma, before, after):
+    """The piece's share ``Re(S'_k S'_run*)`` of ``|S'_run|²`` (docs/model.md §4.2), per wavelength.
+
+    The incoherent mode adds the intensities of straight segments; a segment that the tables cut into
+    pieces, or a polyline running straight on, is one run that goes on ``before`` the piece's start and
+    ``after`` its end (µm, 0 where it ends).  Its pieces' shares add up to the run's ``|S'|²`` wherever
+    the window sees them, so where a long groove is cut no seam shows (``|S'_k|²`` per piece halved
+    the intensity over a window at every cut)."""
+    nu_par, nu_perp = frequencies(segment, xi_x, xi_y)
+    piece, run = piece_and_run_integrals(segment.c, segment.c + segment.length, before, after, nu_par, sigma)
+    across = cross_section(segment, nu_perp, k_z * segment.depth, sigma, False).abs2()
+    return dr.fma(piece.re, run.re, piece.im * run.im) * across

@@ -384,7 +384,9 @@ def _split(arrays, max_length):
     source, k = expand(np.zeros(len(a), np.int64), parts)
     step = (b - a)[source] / parts[source, None]
     new_a = a[source] + k[:, None] * step
-    new_b = np.where((k + 1 == parts[source])[:, None], b[source], new_a + step)  # exact far ends
+    # each piece ends exactly where the next one starts (continuations() joins them by equal ends), and
+    # the last one at the far end
+    new_b = np.where((k + 1 == parts[source])[:, None], b[source], a[source] + (k + 1)[:, None] * step)
     return (new_a, new_b) + tuple(x[source] for x in arrays[2:])
 
 

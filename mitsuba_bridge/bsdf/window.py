@@ -16,7 +16,7 @@ import drjit as dr
 from .complexmath import Cx, expi
 from .faddeeva import faddeeva
 
-__all__ = ["mirror_lobe", "window_integral", "END_CLAMP_SIGMAS", "END_NEGLIGIBLE_SIGMAS"]
+__all__ = ["mirror_lobe", "window_integral", "piece_and_run_integrals", "END_CLAMP_SIGMAS", "END_NEGLIGIBLE_SIGMAS"]
 
 #: Segment end positions are clamped to ±8σ (the window is e^-32 there).
 END_CLAMP_SIGMAS = 8.0
@@ -47,10 +47,10 @@ def _end_term(t, nu, sigma):
     return g * w * sign
 
 
-def _skippable_end_term(t, nu, sigma):
-    """:func:`_end_term`, skipped (zero) for whole SIMD packets of far ends."""
+def _skippable_end_term(t, nu, sigma, wanted=True):
+    """:func:`_end_term`, skipped (zero) for whole SIMD packets of far (or not ``wanted``) ends."""
     zero = dr.zeros(type(nu))
-    near = dr.abs(t) < END_NEGLIGIBLE_SIGMAS * sigma
+    near = (dr.abs(t) < END_NEGLIGIBLE_SIGMAS * sigma) & wanted
 
     def compute(t, nu):
         term = _end_term(t, nu, sigma)
@@ -79,3 +79,23 @@ def window_integral(t0, t1, nu, sigma, skip_far_ends: bool = True):
     end_term = _skippable_end_term if skip_far_ends else _end_term
     result = end_term(t1, nu, sigma) - end_term(t0, nu, sigma) + line
     return result * (_SQRT_HALF_PI * sigma)
+
+
+def piece_and_run_integrals(t0, t1, before, after, nu, sigma):
+    """``(Φ(t1) - Φ(t0), Φ(t1 + after) - Φ(t0 - before))``: :func:`window_integral` along a piece and
+    along the straight run it belongs to, which goes on ``before`` its start and ``after`` its end
+    (``>= 0``; 0: the piece ends there).  The run shares the piece's end terms where it ends with it,
+    and far ends are skipped as there, so a run costs little more than its piece."""
+    limit = END_CLAMP_SIGMAS * sigma
+    r0, r1 = dr.clip(t0 - before, -limit, limit), dr.clip(t1 + after, -limit, limit)
+    t0, t1 = dr.clip(t0, -limit, limit), dr.clip(t1, -limit, limit)
+    e0, e1 = _skippable_end_term(t0, nu, sigma), _skippable_end_term(t1, nu, sigma)
+    moved0, moved1 = r0 != t0, r1 != t1
+    f0 = _skippable_end_term(r0, nu, sigma, moved0)
+    f1 = _skippable_end_term(r1, nu, sigma, moved1)
+    f0, f1 = f0.select(moved0, e0), f1.select(moved1, e1)
+    full = 2.0 * dr.exp((-2.0 * math.pi ** 2) * (sigma * sigma) * nu * nu)
+    step = lambda t: dr.select(t >= 0.0, 1.0, 0.0)
+    piece = e1 - e0 + full * (step(t1) - step(t0))
+    run = f1 - f0 + full * (step(r1) - step(r0))
+    return piece * (_SQRT_HALF_PI * sigma), run * (_SQRT_HALF_PI * sigma)

@@ -11,7 +11,7 @@ same process and variant (llvm_ad_spectral); each figure is the best of
 Dense sets (issue 12): ``--dense`` adds the time per query on the paper's CD
 (3.1 million chords on tracks of pitch 1.6 µm, built as in
 ``bench_bsdf_memory.py``) and on the Fig. 9 grating (1 600 grooves of 7 cm at a
-2.5 µm pitch), at shading points spread over the tracks/bands in every
+2.5 µm pitch), coherent and incoherent, at shading points spread over the tracks/bands in every
 orientation, as wall time per lane (all cores) and as a ratio to
 ``roughconductor.eval`` measured in the same run (the machine is shared), the time of the search
 alone (the fold over the pieces in the window with a body that only counts them), the share of
@@ -161,7 +161,6 @@ def dense_sets(args, rng):
     from scratch_iridescence.mitsuba_bridge import bsdf as scratch_bsdf
     from scratch_iridescence.mitsuba_bridge.bsdf.lookup import for_each_segment, jacobian
     from scratch_iridescence.mitsuba_bridge.bsdf.model import WINDOW_RADIUS_SIGMAS
-    from scratch_iridescence.mitsuba_bridge.bsdf.periodic import find_family
     from scratch_iridescence.mitsuba_bridge.scratch import ScratchSet
 
     sys.path.insert(0, str(Path(__file__).parent))
@@ -212,38 +211,40 @@ def dense_sets(args, rng):
                 if i:
                     best[k] = min(best[k], time.perf_counter() - start)
         pieces = float(np.mean(np.asarray(search())))
-        if model.grid.periodic:
-            family = find_family(model.grid, jacobian(si, model.micrometres_per_unit), model.sigma, True)
-            closed = float(np.mean(np.asarray(family.eligible)))
-        else:
-            closed = 0.0
+        family = model._family(jacobian(si, model.micrometres_per_unit), True)
+        closed = 0.0 if family is None else float(np.mean(np.asarray(family.eligible)))
         return best[0] / n, best[1] / n, best[2] / n, pieces, closed, best[3] / n
+
+    times = {}
+
+    def both_modes(name, scratches, unit_scale, si):
+        """The set's times coherent and incoherent (one BSDF at a time: the CD's take 1 GB each)."""
+        for coherent in (True, False):
+            start = time.perf_counter()
+            bsdf = mi.load_dict(scratch_bsdf.plugin_dict(scratches, unit_scale=unit_scale, coherent=coherent))
+            print(f"\n{name}: {bsdf} (load {time.perf_counter() - start:.1f} s)")
+            times[f"{name} {'coherent' if coherent else 'incoherent'}"] = time_eval(bsdf, si)
+            del bsdf
 
     # the CD: points on the program area, every track orientation
     radius = rng.uniform(23e-3, 57e-3, n) / DISC_M
     angle = rng.uniform(0, 2 * np.pi, n)
-    start = time.perf_counter()
-    cd = mi.load_dict(scratch_bsdf.plugin_dict(cd_scratches(), unit_scale=DISC_M))
-    print(f"\nCD: {cd} (load {time.perf_counter() - start:.1f} s)")
-    cd_times = time_eval(cd, interaction(0.5 + radius * np.cos(angle), 0.5 + radius * np.sin(angle)))
-    del cd
+    both_modes("CD", cd_scratches(), DISC_M, interaction(0.5 + radius * np.cos(angle), 0.5 + radius * np.sin(angle)))
 
     # the Fig. 9 grating: four bands of 400 grooves, pitch 2.5 µm, 7 cm long, on a 10 cm plate (UV = plate)
     plate_m, pitch_m = 0.10, 2.5e-6
     bands = np.array([0.0, 0.005, 0.010, 0.015])
     y = (bands[:, None] + pitch_m * np.arange(400)[None, :]).ravel() / plate_m + 0.4
     grooves = [np.array([[0.15, yy], [0.85, yy]]) for yy in y]
-    grating = mi.load_dict(scratch_bsdf.plugin_dict(
-        ScratchSet.from_polylines(grooves, width=1e-6, depth=1e-6), unit_scale=plate_m))
-    print(f"grating: {grating}")
     band = rng.integers(0, 4, n)
     v = 0.4 + (bands[band] + rng.uniform(0, 400 * pitch_m, n)) / plate_m
-    grating_times = time_eval(grating, interaction(rng.uniform(0.2, 0.8, n), v))
+    both_modes("grating", ScratchSet.from_polylines(grooves, width=1e-6, depth=1e-6), plate_m,
+               interaction(rng.uniform(0.2, 0.8, n), v))
 
     print(f"time per eval query (wall per lane, {os.cpu_count()} cores, {n} lanes, best of {args.repeat}; "
           "roughconductor.eval on the same lanes, measured alternately):")
-    for name, (query, reference, search, pieces, closed, scanned) in (("CD", cd_times), ("grating", grating_times)):
-        print(f"  {name:8s} {query * 1e9:8.0f} ns  = {query / reference:6.1f} x roughconductor.eval "
+    for name, (query, reference, search, pieces, closed, scanned) in times.items():
+        print(f"  {name:19s} {query * 1e9:8.0f} ns  = {query / reference:6.1f} x roughconductor.eval "
               f"({reference * 1e9:.1f} ns); {closed:.1%} of the lanes in a periodic family; every lane "
               f"scanning {scanned * 1e9:.0f} ns, the search alone {search * 1e9:.0f} ns for {pieces:.1f} pieces")
 

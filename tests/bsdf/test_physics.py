@@ -313,9 +313,12 @@ def test08_float32_suffices_on_a_large_object_far_from_the_uv_origin():
     assert np.sqrt(np.sum((got - expected) ** 2) / np.sum(expected ** 2)) < 0.01
 
 
-def test08b_collinear_polyline_vertices_inside_the_window_change_nothing():
+@pytest.mark.parametrize("coherent", [True, False])
+def test08b_collinear_polyline_vertices_inside_the_window_change_nothing(coherent):
     """Finite segments are additive along a line: a straight scratch cut at 3 vertices near x0
-    (V-groove and flat bottom) evaluates like the uncut one: the end terms of the joints cancel."""
+    (V-groove and flat bottom) evaluates like the uncut one: the end terms of the joints cancel.
+    Incoherently too: the pieces of a straight run are one segment (segment.incoherent_intensity);
+    adding their intensities instead was up to 50 % darker at every joint."""
     wi = shading.direction(35.0, 20.0)
     rng = np.random.default_rng(12)
     wo = np.array([shading.direction(t, p) for t, p in zip(rng.uniform(0, 85, 500), rng.uniform(0, 360, 500))])
@@ -325,9 +328,38 @@ def test08b_collinear_polyline_vertices_inside_the_window_change_nothing():
         cut = ScratchSet.from_polylines([shading.to_uv([[-20.0, 0.7], [-1.0, 0.225], [0.4, 0.19],
                                                         [2.5, 0.1375], [20.0, -0.3]])],
                                         width=1.5e-6, depth=0.3e-6, profile=profile)
-        a = shading.eval_brdf(shading.load_bsdf(whole, sigma_um=2.0), wi, wo)
-        b = shading.eval_brdf(shading.load_bsdf(cut, sigma_um=2.0), wi, wo)
+        a = shading.eval_brdf(shading.load_bsdf(whole, sigma_um=2.0, coherent=coherent), wi, wo)
+        b = shading.eval_brdf(shading.load_bsdf(cut, sigma_um=2.0, coherent=coherent), wi, wo)
         np.testing.assert_allclose(b, a, rtol=2e-3, atol=1e-5 * a.max())
+
+
+def test08c_incoherent_long_grooves_show_no_seam_where_the_tables_cut_them(monkeypatch):
+    """The tables cut long scratches into pieces of at most MAX_PIECE_UV; the incoherent mode joins them
+    again: along a groove, across one of its cuts, the BRDF is the uncut groove's."""
+    from scratch_iridescence.mitsuba_bridge.bsdf import tables
+
+    groove = ScratchSet.from_polylines([np.array([[0.1, 0.5], [0.9, 0.5]])], width=1e-6, depth=0.3e-6)
+    cut_u = 0.1 + 0.8 / 52 * 20  # a cut: 52 pieces of 0.8/52 UV
+    count = 41
+    u = cut_u + np.linspace(-40e-6, 40e-6, count) / 0.1  # ±40 µm on a 10 cm plate, σ = 5 µm
+    si = dr.zeros(mi.SurfaceInteraction3f, count)
+    si.uv = mi.Point2f(mi.Float(u), mi.Float(np.full(count, 0.5)))
+    si.dp_du, si.dp_dv = mi.Vector3f(0.1, 0, 0), mi.Vector3f(0, 0.1, 0)
+    si.n, si.sh_frame = mi.Normal3f(0, 0, 1), mi.Frame3f(mi.Vector3f(0, 0, 1))
+    si.wi, si.wavelengths = mi.Vector3f(shading.direction(30.0, 90.0)), mi.Spectrum(450.0, 520.0, 600.0, 680.0)
+    wo = mi.Vector3f(shading.direction(8.0, 275.0))  # off the mirror lobe, near the groove's line
+
+    def brdf():
+        bsdf = mi.load_dict(scratch_bsdf.plugin_dict(groove, unit_scale=0.1, coherent=False, material="none"))
+        return bsdf, np.asarray(bsdf.eval(mi.BSDFContext(), si, wo), np.float64)
+
+    cut_bsdf, cut = brdf()
+    assert cut_bsdf.tables.piece_count == 52
+    monkeypatch.setattr(tables, "MAX_PIECE_UV", 1.0)
+    whole_bsdf, whole = brdf()
+    assert whole_bsdf.tables.piece_count == 1
+    assert whole.min() > 0.0
+    np.testing.assert_allclose(cut, whole, rtol=1e-4)
 
 
 NAN_CASES = {

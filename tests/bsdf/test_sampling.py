@@ -42,6 +42,9 @@ CONFIGS = {
         ref.Scratch((KINK_UM, y), (KINK_UM + 30 * np.cos(0.07), y - 30 * np.sin(0.07)), 0.3, 0.15, ref.TRI))],
                        0.5, 35.0, {"cell_size": 1.0 / 16.0}),
     "incoherent": ([ref.Scratch((-20, y), (20, y), 0.7, 0.2) for y in (-0.8, 0.5)], 0.5, 35.0, {"coherent": False}),
+    # the incoherent mode's closed form of a run of tracks (flat bottoms; docs/model.md §3.5)
+    "incoherent_grating": ([ref.Scratch((-30, y), (30, y), 0.3, 0.15) for y in np.arange(-9.0, 9.01, 0.45)],
+                           0.5, 35.0, {"cell_size": 1.0 / 16.0, "coherent": False}),
     # the normalisation of depth_phase="bounded" is at work (Kirchhoff albedo > 1 at 40°)
     "deep_bounded": ([ref.Scratch((-20, 0.2), (20, 0.2), 1.0, 1.0)], 0.5, 40.0, {"depth_phase": "bounded"}),
 }
