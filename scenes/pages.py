@@ -259,12 +259,12 @@ def _benchmarks(figures, records: dict) -> str:
               "and the image.",
               "* **Scratch set → BSDF**: decoding the object's stored scratch file and `mi.load_dict` of the "
               "`scratch_diffraction` plugin with it and the object's settings (the UV grid of segments; the "
-              "periodic families of coherent dense sets; the crossing pairs of `crossings = \"height_field\"`), "
+              "periodic families of dense sets; the crossing pairs of `crossings = \"height_field\"`), "
               "timed on its own after the render.",
               "* The CD was the slow case of the model: a query evaluates the ~25 track pieces inside the coherence "
-              "window, and finding them costs about twice what evaluating them does. Coherent, its tracks now sum "
-              "in closed form wherever a window lies among them (periodic families, [model.md](model.md) §3.5; "
-              "[bsdf.md](bsdf.md), Performance); the incoherent mode still scans.",
+              "window, and finding them costs about twice what evaluating them does. Its tracks now sum in closed "
+              "form wherever a window lies among them (periodic families, [model.md](model.md) §3.5; "
+              "[bsdf.md](bsdf.md), Performance): coherently also across a chord's kink, incoherently not there.",
               "* **GPU.** No GPU was lent to this task (the device tool says none is available), so the same "
               "scenes at the paper's full 16 384 spp on `cuda_ad_spectral` were not rendered and no GPU time is "
               "reported. On this CPU, 16 384 spp at the resolutions above would take the passes' time × 16 384 / "

@@ -344,7 +344,7 @@ def test08c_incoherent_long_grooves_show_no_seam_where_the_tables_cut_them(monke
     u = cut_u + np.linspace(-40e-6, 40e-6, count) / 0.1  # ±40 µm on a 10 cm plate, σ = 5 µm
     si = dr.zeros(mi.SurfaceInteraction3f, count)
     si.uv = mi.Point2f(mi.Float(u), mi.Float(np.full(count, 0.5)))
-    si.dp_du, si.dp_dv = mi.Vector3f(0.1, 0, 0), mi.Vector3f(0, 0.1, 0)
+    si.dp_du, si.dp_dv = mi.Vector3f(1, 0, 0), mi.Vector3f(0, 1, 0)  # (unit_scale: 1 UV = 10 cm)
     si.n, si.sh_frame = mi.Normal3f(0, 0, 1), mi.Frame3f(mi.Vector3f(0, 0, 1))
     si.wi, si.wavelengths = mi.Vector3f(shading.direction(30.0, 90.0)), mi.Spectrum(450.0, 520.0, 600.0, 680.0)
     wo = mi.Vector3f(shading.direction(8.0, 275.0))  # off the mirror lobe, near the groove's line
