@@ -264,7 +264,7 @@ def _benchmarks(figures, records: dict) -> str:
               "* The CD was the slow case of the model: a query evaluates the ~25 track pieces inside the coherence "
               "window, and finding them costs about twice what evaluating them does. Its tracks now sum in closed "
               "form wherever a window lies among them (periodic families, [model.md](model.md) §3.5; "
-              "[bsdf.md](bsdf.md), Performance): coherently also across a chord's kink, incoherently not there.",
+              "[bsdf.md](bsdf.md), Performance), also across a chord's kink.",
               "* **GPU.** No GPU was lent to this task (the device tool says none is available), so the same "
               "scenes at the paper's full 16 384 spp on `cuda_ad_spectral` were not rendered and no GPU time is "
               "reported. On this CPU, 16 384 spp at the resolutions above would take the passes' time × 16 384 / "

@@ -99,11 +99,11 @@ class Model:
         """The periodic family of each lane's window (:mod:`.periodic`), or None where none is used."""
         if not (self.periodic and self.grid.periodic and self.sums_families(self.coherent, self.depth_phase)):
             return None
-        if self.coherent:
-            return find_family(self.grid, jac, self.sigma, active)
-        # incoherent: a plain run only, of grooves narrow enough for its quadrature (family_intensity)
-        family = find_family(self.grid, jac, self.sigma, active, kinks=False)
-        family.eligible &= family.width <= MAX_INCOHERENT_WIDTH_SIGMAS * self.sigma
+        family = find_family(self.grid, jac, self.sigma, active)
+        if not self.coherent:  # grooves narrow enough for the incoherent quadrature (family_intensity)
+            family.eligible &= family.width <= MAX_INCOHERENT_WIDTH_SIGMAS * self.sigma
+            if family.kink is not None:
+                family.kink &= family.eligible
         return family
 
     def _family_weights(self, family, kz0):
@@ -135,8 +135,8 @@ class Model:
         return mi.Spectrum(lobe + s.re), mi.Spectrum(s.im)
 
     def _family_intensity(self, family, xi_x, xi_y, k_z):
-        return (mi.Spectrum(family_intensity(family, xi_x, xi_y, k_z, self.sigma)),
-                mi.Float(run_energies(family, self.sigma)[0]))
+        covered_a, covered_b = run_energies(family, self.sigma)
+        return mi.Spectrum(family_intensity(family, xi_x, xi_y, k_z, self.sigma)), mi.Float(covered_a + covered_b)
 
     @staticmethod
     def _family_line(family, second=False):

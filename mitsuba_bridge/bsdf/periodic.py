@@ -44,7 +44,8 @@ Sets without kinks compile none of this.
 
 **Incoherent mode** (:func:`family_intensity`): the tracks' intensities sum by the same Poisson formula
 to the order 0 alone, the squared along factor times (σ/P) the squared groove transform averaged over
-the squared window's transform (4-point Gauss–Hermite; docs/model.md §3.5); kinks scan there.
+the squared window's transform (4-point Gauss–Hermite; docs/model.md §3.5); at a kink each run's cut
+along factor is averaged over the tracks' offsets the same way.
 Units as everywhere in the kernels: µm, 1/µm.
 """
 from __future__ import annotations
@@ -63,6 +64,7 @@ from . import profiles
 from .complexmath import Cx, expi
 from .faddeeva import faddeeva
 from .references import aligned
+from .window import window_integral
 
 __all__ = ["PeriodicTables", "periodic_families", "Family", "find_family", "family_field", "family_intensity",
            "run_energies", "MIN_TRACKS", "ACROSS_SIGMAS", "ALONG_SIGMAS"]
@@ -461,9 +463,8 @@ class _Slot(NamedTuple):
     pitch_cells: object
 
 
-def find_family(grid, jac, sigma, active, kinks: bool = True) -> Family:
-    """The family whose tracks fill x0's window, if any (module docstring); ``kinks=False``: not at a
-    kink (the incoherent mode has no closed form there).
+def find_family(grid, jac, sigma, active) -> Family:
+    """The family whose tracks fill x0's window, if any (module docstring).
 
     The window's box may reach into the neighbouring cells (at most 2 × 2 cells): each cell it touches
     must hold the same run (same direction, pitch and groove, offsets a whole number of pitches apart)
@@ -483,7 +484,7 @@ def find_family(grid, jac, sigma, active, kinks: bool = True) -> Family:
     usable &= ((u0 >= 0.0) & (v0 >= 0.0) & (u1 < mi.Float(grid.cells_u)) & (v1 < mi.Float(grid.cells_v))
                & (u1 - u0 <= 1.0) & (v1 - v0 <= 1.0) & dr.isfinite(extent_u) & dr.isfinite(extent_v))
     signed = dr.select(det >= 0.0, 1.0, -1.0)
-    kinks = kinks and grid.kink_count > 0  # (a Python choice: sets without kinks compile no kink code)
+    kinks = grid.kink_count > 0  # (a Python choice: sets without kinks compile no kink code)
 
     def box_range(cu, cv, n_u, n_v):
         """``(min, max)`` of n·x over the window's box clipped to cell (cu, cv) (that cell's coordinates)."""
@@ -741,21 +742,67 @@ MAX_INCOHERENT_WIDTH_SIGMAS = 2.0
 
 def family_intensity(family: Family, xi_x, xi_y, k_z, sigma):
     """``Σ_n |S'_n(ξ)|²`` over the family's infinite run: the incoherent mode's closed form (docs/model.md
-    §3.5), per wavelength.
+    §3.5), per wavelength; at a kink the sum of its two runs, each cut by its side of the line.
 
     Poisson summation over the tracks' offsets leaves the order m = 0 alone (the others carry
     e^{-π²σ²m²/P²}, below 5e-5 where σ >= P): the along factor's square times
     (1/P) ∫ |A'(ν⊥; a)|² da = (σ√π/P) E[|G'(ν⊥ + η)|²] over η ~ N(0, 1/(8π²σ²)), the squared window's
     transform, which a 4-point Gauss–Hermite rule averages (``MAX_INCOHERENT_WIDTH_SIGMAS``)."""
     kappa = k_z * family.depth
-    nu_par = xi_x * family.dx + xi_y * family.dy
-    nu_perp = xi_y * family.dx - xi_x * family.dy
+    kind = type(xi_x)
+    full = _run_intensity(family, family.pitch, family.dx, family.dy, xi_x, xi_y, kappa, sigma)
+    if family.kink is None:
+        return full
+
+    def cut_run(i, total):
+        """Run A (i = 0) or B (i = 1), cut by its side of the kink line."""
+        second = i == 1
+        pick = lambda a, b: dr.select(second, b, a)
+        side = dr.select(second, -1.0, 1.0)
+        run = _run_intensity(family, pick(family.pitch, family.b_pitch), pick(family.dx, family.b_dx),
+                             pick(family.dy, family.b_dy), xi_x, xi_y, kappa, sigma,
+                             cut=(side * family.l_x, side * family.l_y, side * family.h))
+        return i + 1, kind(total + run)
+
+    # (a loop on the kink lanes only, as in family_field)
+    turns = dr.select(family.kink, dr.select(family.lone, 1, 2), 0)
+    _, total = dr.while_loop((dr.zeros(mi.UInt32), dr.zeros(kind)), lambda i, total: i < turns, cut_run,
+                             label="scratch_family_kink_intensity")
+    return dr.select(family.kink, total, full)
+
+
+def _run_intensity(family: Family, pitch, dx, dy, xi_x, xi_y, kappa, sigma, cut=None):
+    """One run's ``Σ_n |S'_n(ξ)|²`` (:func:`family_intensity`).  ``cut = (l_x, l_y, h)``: only the half-plane
+    y·l >= h of each track (y = x - x0).  Track n then ends where it meets the line, at a point that
+    moves along it with the track's offset a: its along factor |Φ|² is averaged over a with the
+    weight e^{-a²/σ²} of the tracks' squared window across (Gauss–Hermite again), apart from
+    |A'(ν⊥; a)|²'s own spread in a, a correction of order (W/σ)² tan² of the line's angle to the
+    tracks' normal (docs/model.md §3.5)."""
+    nu_par = xi_x * dx + xi_y * dy
+    nu_perp = xi_y * dx - xi_x * dy
     spread = 1.0 / (2.0 * math.pi) * dr.rcp(sigma)  # √2 × the std of η
-    total = dr.zeros(type(xi_x))
+    across = dr.zeros(type(xi_x))
     for node, weight in zip(HERMITE_NODES, HERMITE_WEIGHTS):
-        total += weight * groove_transform(family, nu_perp + node * spread, kappa, coherent=False).abs2()
-    along2 = (2.0 * math.pi) * sigma * sigma * dr.exp((-4.0 * math.pi ** 2) * sigma * sigma * nu_par * nu_par)
-    return along2 * (sigma * dr.rcp(family.pitch)) * total
+        across += weight * groove_transform(family, nu_perp + node * spread, kappa, coherent=False).abs2()
+    across = across * (sigma * dr.rcp(pitch))
+    if cut is None:
+        return across * ((2.0 * math.pi) * sigma * sigma * dr.exp((-4.0 * math.pi ** 2) * sigma * sigma
+                                                                   * nu_par * nu_par))
+    l_x, l_y, h = cut
+    l_t = l_x * dx + l_y * dy  # |l·t| >= KINK_MIN_COS
+    l_n = l_y * dx - l_x * dy  # l·n, n = (-dy, dx)
+    forward = l_t > 0.0  # the kept part of a track: s >= its end (forward) or s <= it
+    inv_l_t = dr.rcp(l_t)
+    along = dr.zeros(type(xi_x))
+    for node, weight in zip(HERMITE_NODES, HERMITE_WEIGHTS):
+        end = (h - (node * sigma) * l_n) * inv_l_t  # where the track at offset a = σ·node meets the line
+        phi = window_integral(dr.select(forward, end, -_FAR), dr.select(forward, _FAR, end), nu_par, sigma)
+        along += weight * phi.abs2()
+    return across * along * (1.0 / math.sqrt(math.pi))
+
+
+#: Beyond any window (µm): an open end of an integral along a track (window_integral clamps it to 8σ).
+_FAR = 1e30
 
 
 def _run_field(family: Family, pitch, dx, dy, a0, xi_x, xi_y, kappa, sigma, cut=None) -> Cx:

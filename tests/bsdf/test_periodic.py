@@ -270,8 +270,10 @@ def test08_the_chi2_gratings_of_test_sampling_are_families():
     bsdf, wi = make("kinked_grating")  # and its "kinked_grating" through the two cut runs
     inside, kink = eligible(bsdf, shading.interaction(16, wi, uv=SHADING_UV["kinked_grating"]), kink=True)
     assert kink.all() and inside.all()
-    bsdf, wi = make("incoherent_grating")  # and "incoherent_grating" through the incoherent closed form
-    assert eligible(bsdf, shading.interaction(16, wi)).all()
+    bsdf, wi = make("incoherent_kinked_grating")  # and the incoherent closed form at a kink
+    inside, kink = eligible(bsdf, shading.interaction(16, wi, uv=SHADING_UV["incoherent_kinked_grating"]),
+                            kink=True)
+    assert kink.all() and inside.all()
 
 
 def test09_degenerate_shading_points_use_no_family():
@@ -387,27 +389,36 @@ def test14_incoherent_closed_form_equals_the_scan(profile, uv_map, split):
     np.testing.assert_array_equal(pdf[~inside], scan_pdf[~inside])
 
 
-def test15_incoherent_kinks_scan():
-    """A kink's two cut runs have no incoherent closed form: windows across the line scan, bit for bit;
-    the plain runs on either side still sum in closed form."""
-    bsdf = load(kinked_grating(), coherent=False)
-    assert bsdf.model.grid.kink_count > 0
+@pytest.mark.parametrize("profile,uv_map,slant,kink_x,x", [
+    (ref.RECT, "plain", 0.0, KINK_X, KINK_LANES["x"]), (ref.RECT, "plain", 6.0, KINK_X, KINK_LANES["x"]),
+    (ref.TRI, "shear", 0.0, KINK_X, KINK_LANES["x"]), (ref.RECT, "mirror", 0.0, KINK_X, KINK_LANES["x"]),
+    (ref.TRI, "shear", 0.0, 58.0, (33.0, 83.0))])
+def test15_incoherent_kinks_equal_the_scan(profile, uv_map, slant, kink_x, x):
+    """Incoherently each track of a run cut by the kink line ends on it, as the scan's chord does: the
+    closed form averages the cut along factor over the tracks' offsets (docs/model.md §3.5).  Measured
+    2–3·10⁻⁶ for flat bottoms (the 6° slant and mirrored map included), 1.5·10⁻⁴ for V-grooves on the
+    sheared map (|A'|² is not even in the offset there), lone runs 1–2·10⁻⁶; asserted at 1e-3."""
+    bsdf = load(kinked_grating(profile, slant_deg=slant, kink_x=kink_x), coherent=False)
     rng = np.random.default_rng(16)
-    count = 1 << 12
-    si, points = lanes(count, rng, **KINK_LANES)
+    count = 1 << 13
+    si, _ = lanes(count, rng, uv_map=uv_map, x=x, y=KINK_LANES["y"])
     wo = mi.warp.square_to_cosine_hemisphere(mi.Point2f(shading.floats(rng.random(count)),
                                                         shading.floats(rng.random(count))))
     family = bsdf.model._family(jacobian(si, bsdf.model.micrometres_per_unit), True)
-    inside = np.asarray(family.eligible)
-    assert family.kink is None
-    assert not inside[np.abs(points[:, 0] - KINK_X) < 4.0 * SIGMA].any() and inside.mean() > 0.1
-    (value, _), (scan_value, _) = scan_and_closed_form(bsdf, si, wo)
+    inside, kink, lone = (np.asarray(m) for m in (family.eligible, family.kink, family.lone))
+    assert inside.mean() > 0.9 and kink.mean() > 0.3 and (lone.any() or kink_x == KINK_X)
+    (value, pdf), (scan_value, scan_pdf) = scan_and_closed_form(bsdf, si, wo)
+    assert relative_l2(value[:, kink], scan_value[:, kink]) < 1e-3
+    assert relative_l2(pdf[kink], scan_pdf[kink]) < 1e-5
+    assert relative_l2(value[:, inside & ~kink], scan_value[:, inside & ~kink]) < 1e-4
     np.testing.assert_array_equal(value[:, ~inside], scan_value[:, ~inside])
-    assert relative_l2(value[:, inside], scan_value[:, inside]) < 1e-4
 
 
-def test16_incoherent_sample_weight_is_eval_over_pdf_inside_a_family():
-    bsdf = load(grating(ref.TRI), coherent=False)
+def test16_incoherent_sample_weight_is_eval_over_pdf_inside_a_family_and_at_a_kink():
     rng = np.random.default_rng(17)
+    bsdf = load(grating(ref.TRI), coherent=False)
     si, _ = lanes(1 << 13, rng)
     assert_sample_weight_is_eval_over_pdf(bsdf, si, eligible(bsdf, si), rng, 0.5)
+    bsdf = load(kinked_grating(ref.TRI, kink_x=58.0), coherent=False)
+    si, _ = lanes(1 << 13, rng, x=(33.0, 83.0), y=KINK_LANES["y"])
+    assert_sample_weight_is_eval_over_pdf(bsdf, si, eligible(bsdf, si, kink=True)[1], rng, 0.3)

@@ -42,16 +42,19 @@ CONFIGS = {
         ref.Scratch((KINK_UM, y), (KINK_UM + 30 * np.cos(0.07), y - 30 * np.sin(0.07)), 0.3, 0.15, ref.TRI))],
                        0.5, 35.0, {"cell_size": 1.0 / 16.0}),
     "incoherent": ([ref.Scratch((-20, y), (20, y), 0.7, 0.2) for y in (-0.8, 0.5)], 0.5, 35.0, {"coherent": False}),
-    # the incoherent mode's closed form of a run of tracks (flat bottoms; docs/model.md §3.5)
-    "incoherent_grating": ([ref.Scratch((-30, y), (30, y), 0.3, 0.15) for y in np.arange(-9.0, 9.01, 0.45)],
-                           0.5, 35.0, {"cell_size": 1.0 / 16.0, "coherent": False}),
+    # the incoherent mode's closed form at the same kink (flat bottoms; docs/model.md §3.5)
+    "incoherent_kinked_grating": ([piece for y in KINK_UM + np.arange(-9.0, 9.01, 0.45) for piece in (
+        ref.Scratch((KINK_UM - 30 * np.cos(0.07), y - 30 * np.sin(0.07)), (KINK_UM, y), 0.3, 0.15),
+        ref.Scratch((KINK_UM, y), (KINK_UM + 30 * np.cos(0.07), y - 30 * np.sin(0.07)), 0.3, 0.15))],
+                                  0.5, 35.0, {"cell_size": 1.0 / 16.0, "coherent": False}),
     # the normalisation of depth_phase="bounded" is at work (Kirchhoff albedo > 1 at 40°)
     "deep_bounded": ([ref.Scratch((-20, 0.2), (20, 0.2), 1.0, 1.0)], 0.5, 40.0, {"depth_phase": "bounded"}),
 }
 
 
 #: Where a config's shading point lies, if not at x0 (UV; the test surface has 1 mm per UV unit).
-SHADING_UV = {"kinked_grating": (shading.X0_UV[0] + KINK_UM * 1e-3, shading.X0_UV[1] + KINK_UM * 1e-3)}
+SHADING_UV = {name: (shading.X0_UV[0] + KINK_UM * 1e-3, shading.X0_UV[1] + KINK_UM * 1e-3)
+              for name in ("kinked_grating", "incoherent_kinked_grating")}
 
 
 def make(name):
