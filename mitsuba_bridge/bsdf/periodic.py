@@ -775,9 +775,9 @@ def _run_intensity(family: Family, pitch, dx, dy, xi_x, xi_y, kappa, sigma, cut=
     """One run's ``Σ_n |S'_n(ξ)|²`` (:func:`family_intensity`).  ``cut = (l_x, l_y, h)``: only the half-plane
     y·l >= h of each track (y = x - x0).  Track n then ends where it meets the line, at a point that
     moves along it with the track's offset a: its along factor |Φ|² is averaged over a with the
-    weight e^{-a²/σ²} of the tracks' squared window across (Gauss–Hermite again), apart from
-    |A'(ν⊥; a)|²'s own spread in a, a correction of order (W/σ)² tan² of the line's angle to the
-    tracks' normal (docs/model.md §3.5)."""
+    weight e^{-a²/σ²} of the tracks' squared window across (Gauss–Hermite again).  That leaves out
+    |A'(ν⊥; a)|²'s own shape in a: its spread, of order (W/σ)² tan²θ (θ the line's angle to the tracks'
+    normal), and its odd part (V-grooves), of order tan θ (docs/model.md §3.5)."""
     nu_par = xi_x * dx + xi_y * dy
     nu_perp = xi_y * dx - xi_x * dy
     spread = 1.0 / (2.0 * math.pi) * dr.rcp(sigma)  # √2 × the std of η
