@@ -84,10 +84,15 @@ def lanes(count, rng, *, x=(-150.0, 150.0), y=(-40.0, 40.0), uv_map="plain"):
     si.dp_du, si.dp_dv = (mi.Vector3f(*axis) for axis in UV_MAPS[uv_map])
     si.n = mi.Normal3f(0, 0, 1)
     si.sh_frame = mi.Frame3f(mi.Vector3f(0, 0, 1))
-    si.wi = mi.warp.square_to_cosine_hemisphere(mi.Point2f(shading.floats(rng.random(count)),
-                                                            shading.floats(rng.random(count))))
+    si.wi = directions(count, rng)
     si.wavelengths = mi.Spectrum(*(shading.floats(rng.uniform(360, 830, count)) for _ in range(4)))
     return si, points
+
+
+def directions(count, rng):
+    """``count`` random outgoing directions, cosine-distributed over the hemisphere."""
+    return mi.warp.square_to_cosine_hemisphere(mi.Point2f(shading.floats(rng.random(count)),
+                                                          shading.floats(rng.random(count))))
 
 
 def eligible(bsdf, si, kink=False):
@@ -139,8 +144,7 @@ def test01_closed_form_equals_the_scan(profile, uv_map, split):
     rng = np.random.default_rng(1)
     count = 1 << 13
     si, _ = lanes(count, rng, uv_map=uv_map)
-    wo = mi.warp.square_to_cosine_hemisphere(mi.Point2f(shading.floats(rng.random(count)),
-                                                        shading.floats(rng.random(count))))
+    wo = directions(count, rng)
     inside = eligible(bsdf, si)
     assert inside.mean() > 0.9  # every window here lies among the tracks, away from their ends
     assert_family_lanes_match_the_scan(bsdf, si, wo, inside, 1e-3, 1e-3)
@@ -178,8 +182,7 @@ def test03_irregular_tracks_are_scanned(change):
         near = np.abs(points[:, 1] - y) < 4.0 * SIGMA if x is None else np.hypot(*(points - (x, y)).T) < 4 * SIGMA
         assert near.any() and not inside[near].any()
         assert inside.any()  # the rest of the grating still sums in closed form
-    wo = mi.warp.square_to_cosine_hemisphere(mi.Point2f(shading.floats(rng.random(count)),
-                                                        shading.floats(rng.random(count))))
+    wo = directions(count, rng)
     (value, pdf), (scan_value, scan_pdf) = scan_and_closed_form(bsdf, si, wo)
     np.testing.assert_array_equal(value[:, ~inside], scan_value[:, ~inside])
     if inside.any():
@@ -196,8 +199,7 @@ def test04_small_jitter_stays_periodic_within_its_phase_error():
     si, _ = lanes(count, rng)
     inside = eligible(bsdf, si)
     assert inside.mean() > 0.9
-    wo = mi.warp.square_to_cosine_hemisphere(mi.Point2f(shading.floats(rng.random(count)),
-                                                        shading.floats(rng.random(count))))
+    wo = directions(count, rng)
     (value, _), (scan_value, _) = scan_and_closed_form(bsdf, si, wo)
     error = relative_l2(value[:, inside], scan_value[:, inside])
     assert 1e-4 < error < 1e-2
@@ -230,8 +232,7 @@ def test06_the_bounded_depth_phase_scans():
     rng = np.random.default_rng(8)
     count = 2048
     si, _ = lanes(count, rng)
-    wo = mi.warp.square_to_cosine_hemisphere(mi.Point2f(shading.floats(rng.random(count)),
-                                                        shading.floats(rng.random(count))))
+    wo = directions(count, rng)
     bsdf = load(grating(), depth_phase="bounded")
     assert bsdf.model._family(jacobian(si, bsdf.model.micrometres_per_unit), True) is None
     (value, _), (scan_value, _) = scan_and_closed_form(bsdf, si, wo)
@@ -309,8 +310,7 @@ def test10_at_a_kink_the_two_cut_runs_equal_the_scan(profile, uv_map, slant):
     rng = np.random.default_rng(11)
     count = 1 << 13
     si, _ = lanes(count, rng, uv_map=uv_map, **KINK_LANES)
-    wo = mi.warp.square_to_cosine_hemisphere(mi.Point2f(shading.floats(rng.random(count)),
-                                                        shading.floats(rng.random(count))))
+    wo = directions(count, rng)
     inside, kink = eligible(bsdf, si, kink=True)
     assert kink.mean() > 0.3 and not (kink & ~inside).any()
     (value, pdf), (scan_value, scan_pdf) = scan_and_closed_form(bsdf, si, wo)
@@ -326,8 +326,7 @@ def test11_kinks_need_every_end_on_the_line_and_one_groove():
     no kink, and the windows there scan, bit for bit."""
     rng = np.random.default_rng(12)
     si, _ = lanes(4096, rng, **KINK_LANES)
-    wo = mi.warp.square_to_cosine_hemisphere(mi.Point2f(shading.floats(rng.random(4096)),
-                                                        shading.floats(rng.random(4096))))
+    wo = directions(4096, rng)
     for spoiled in (kinked_grating(shift=0.1 * PITCH), kinked_grating(second_width=0.7)):
         bsdf = load(spoiled)
         inside, kink = eligible(bsdf, si, kink=True)
@@ -357,8 +356,7 @@ def test13_kink_windows_across_cells_and_single_runs_by_their_end_line(profile, 
     rng = np.random.default_rng(14)
     count = 1 << 13
     si, points = lanes(count, rng, x=(33.0, 83.0), y=(-30.0, 30.0), uv_map=uv_map)
-    wo = mi.warp.square_to_cosine_hemisphere(mi.Point2f(shading.floats(rng.random(count)),
-                                                        shading.floats(rng.random(count))))
+    wo = directions(count, rng)
     family = periodic.find_family(bsdf.model.grid, jacobian(si, bsdf.model.micrometres_per_unit),
                                   bsdf.model.sigma, True)
     inside, kink, lone = (np.asarray(x) for x in (family.eligible, family.kink, family.lone))
@@ -383,8 +381,7 @@ def test14_incoherent_closed_form_equals_the_scan(profile, uv_map, split):
     rng = np.random.default_rng(15)
     count = 1 << 13
     si, _ = lanes(count, rng, uv_map=uv_map)
-    wo = mi.warp.square_to_cosine_hemisphere(mi.Point2f(shading.floats(rng.random(count)),
-                                                        shading.floats(rng.random(count))))
+    wo = directions(count, rng)
     inside = eligible(bsdf, si)
     assert inside.mean() > 0.9
     assert_family_lanes_match_the_scan(bsdf, si, wo, inside, 1e-4, 1e-5)
@@ -403,8 +400,7 @@ def test15_incoherent_kinks_equal_the_scan(profile, uv_map, slant, kink_x, x):
     rng = np.random.default_rng(16)
     count = 1 << 13
     si, _ = lanes(count, rng, uv_map=uv_map, x=x, y=KINK_LANES["y"])
-    wo = mi.warp.square_to_cosine_hemisphere(mi.Point2f(shading.floats(rng.random(count)),
-                                                        shading.floats(rng.random(count))))
+    wo = directions(count, rng)
     family = bsdf.model._family(jacobian(si, bsdf.model.micrometres_per_unit), True)
     inside, kink, lone = (np.asarray(m) for m in (family.eligible, family.kink, family.lone))
     assert inside.mean() > 0.9 and kink.mean() > 0.3 and (lone.any() or kink_x == KINK_X)
