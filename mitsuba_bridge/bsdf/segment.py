@@ -60,8 +60,8 @@ def cross_section(segment: SegmentGeometry, nu_perp, kappa, sigma, coherent: boo
     return Cx(re, im)
 
 
-def amplitude(segment: SegmentGeometry, xi_x, xi_y, k_z, sigma, *, coherent: bool = True) -> Cx:
-    """``S_k(ξ)`` (coherent) or ``S'_k(ξ)`` (``coherent=False``, docs/model.md §4.2).
+def amplitude(segment: SegmentGeometry, xi_x, xi_y, k_z, sigma) -> Cx:
+    """``S_k(ξ)`` (the incoherent mode sums :func:`incoherent_intensity` instead).
 
     Parameters
     ----------
@@ -76,7 +76,7 @@ def amplitude(segment: SegmentGeometry, xi_x, xi_y, k_z, sigma, *, coherent: boo
     """
     nu_par, nu_perp = frequencies(segment, xi_x, xi_y)
     along = window_integral(segment.c, segment.c + segment.length, nu_par, sigma)
-    return along * cross_section(segment, nu_perp, k_z * segment.depth, sigma, coherent)
+    return along * cross_section(segment, nu_perp, k_z * segment.depth, sigma, True)
 
 
 def incoherent_intensity(segment: SegmentGeometry, xi_x, xi_y, k_z, sigma, before, after):
