@@ -148,19 +148,28 @@ def film_pixels(scene) -> int:
     return width * height
 
 
-def render_chunks(scene, chunks: Iterable[Chunk], spp_total: int) -> Iterator[Progress]:
+def render_chunks(scene, chunks: Iterable[Chunk], spp_total: int, *, freeze: bool = True) -> Iterator[Progress]:
     """Render the given ``chunks`` (consecutive ones of a schedule) in order and yield the running mean after each.
 
     ``spp_total`` is the sum of their spp (for ``fraction``).  Stop iterating to
-    cancel: no work is left behind.
+    cancel: no work is left behind.  ``freeze``: record the first chunk of each
+    size with ``dr.freeze`` and replay it for the others
+    (:class:`~mitsuba_bridge.freezing.FrozenRender`: the same kernels, so the
+    same image bit for bit, without tracing the integrator and the Python BSDF
+    again for every chunk); a scene that cannot be recorded renders traced.
     """
+    from .freezing import FrozenRender
+
     chunks = list(chunks)
     indices = [chunk.index for chunk in chunks]
     if indices and indices != list(range(indices[0], indices[0] + len(indices))):
         raise ValueError("render_chunks needs consecutive chunks of one schedule (the sums follow their indices)")
+    passes = FrozenRender(enabled=freeze)
     sums, done, start = PairwiseSum(chunks[0].index if chunks else 0), 0, time.perf_counter()
     for number, chunk in enumerate(chunks, start=1):
-        image = np.asarray(render_whole(scene, spp=chunk.spp, seed=chunk.seed), dtype=np.float32)
+        image = np.asarray(passes(scene, 0, chunk.spp, chunk.seed), dtype=np.float32)
+        if scene.integrator().should_stop():  # a SIGINT while a traced or recorded pass ran (render_whole)
+            raise RenderInterrupted("Mitsuba stopped the render early (interrupted)")
         # float32 × an integer below 2**29 is exact in float64: the only rounding is in the fixed-order sum.
         sums.add(image.astype(np.float64) * chunk.spp)
         done += chunk.spp

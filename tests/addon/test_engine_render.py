@@ -330,17 +330,17 @@ def test_missing_texture_renders_magenta_with_a_warning(recording, empty_scene, 
 def test_ctrl_c_in_blenders_terminal_cancels_and_keeps_the_chunks_before(recording, lit, tmp_path, monkeypatch):
     """Mitsuba's SIGINT handler stops the chunk it is in (render.RenderInterrupted, as `should_stop()` says):
     F12 ends as cancelled with the chunks before it, never with the stopped chunk's partial samples."""
-    from scratch_iridescence.mitsuba_bridge import render as passes
+    from scratch_iridescence.mitsuba_bridge import freezing, render as passes
 
-    real, calls = passes.render_whole, []
+    real, calls = freezing.FrozenRender.__call__, []
 
-    def interrupted_on_the_third_chunk(scene, **arguments):
-        calls.append(arguments["spp"])
+    def interrupted_on_the_third_chunk(self, scene, sensor, spp, seed):
+        calls.append(spp)
         if len(calls) == 3:
             raise passes.RenderInterrupted("Mitsuba stopped the render early (interrupted)")
-        return real(scene, **arguments)
+        return real(self, scene, sensor, spp, seed)
 
-    monkeypatch.setattr(passes, "render_whole", interrupted_on_the_third_chunk)
+    monkeypatch.setattr(freezing.FrozenRender, "__call__", interrupted_on_the_third_chunk)
     lit.render.engine = RecordingEngine.bl_idname
     lit.scratch_iridescence.samples = 67
     image = render_to(lit, tmp_path / "interrupted.exr")

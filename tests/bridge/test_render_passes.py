@@ -5,8 +5,19 @@ import numpy as np
 import pytest
 
 from bridge_scenes import interrupting_scene, simple_scene
-from scratch_iridescence.mitsuba_bridge import builder, render, schedule
+from scratch_iridescence.mitsuba_bridge import builder, freezing, render, schedule
 from scratch_iridescence.mitsuba_bridge import scene as S
+
+
+def spy_on_chunks(monkeypatch, around):
+    """Route every chunk's render call (frozen or traced: ``FrozenRender.__call__``) through
+    ``around(render_call, spp, seed)``."""
+    original = freezing.FrozenRender.__call__
+
+    def spied(self, scene, sensor, spp, seed):
+        return around(lambda: original(self, scene, sensor, spp, seed), spp, seed)
+
+    monkeypatch.setattr(freezing.FrozenRender, "__call__", spied)
 
 
 def test01_schedule_adds_up_to_spp_in_power_of_two_chunks_within_the_memory_bound():
@@ -97,17 +108,14 @@ def test06_chunks_add_up_to_the_requested_samples_and_report_progress(lit_scene)
 
 
 def test07_running_mean_is_the_spp_weighted_mean_of_the_chunks(lit_scene, monkeypatch):
-    import mitsuba as mi
-
     calls = []
-    original = mi.render
 
-    def spy(scene, spp, seed):
-        image = original(scene, spp=spp, seed=seed)
+    def record(render_call, spp, seed):
+        image = render_call()
         calls.append((spp, seed, np.asarray(image)))
         return image
 
-    monkeypatch.setattr(mi, "render", spy)
+    spy_on_chunks(monkeypatch, record)
     steps = list(render.render_passes(lit_scene, 13, seed=4))
     final = steps[-1].image
     assert np.array_equal(steps[0].image, calls[0][2])  # an early mean, asked for late, is still that chunk's
@@ -124,11 +132,8 @@ def test08_more_samples_reduce_the_noise(lit_scene):
 
 
 def test09_stopping_the_iteration_cancels_without_rendering_further(lit_scene, monkeypatch):
-    import mitsuba as mi
-
     count = []
-    original = mi.render
-    monkeypatch.setattr(mi, "render", lambda *a, **k: (count.append(1), original(*a, **k))[1])
+    spy_on_chunks(monkeypatch, lambda render_call, spp, seed: (count.append(1), render_call())[1])
     for progress in render.render_passes(lit_scene, 100_000):
         if progress.index == 2:
             break
@@ -148,17 +153,15 @@ def test10_a_tiny_film_renders_the_same_bits_every_time(variant):
 
 def test11_the_image_is_the_same_bit_for_bit_whatever_the_timing(lit_scene, monkeypatch):
     """Slow and uneven chunks (a busy machine) and a display refreshed at other moments change nothing."""
-    import mitsuba as mi
-
     spp = 4096 + 7  # several chunks of several sizes
     quiet = render.render_image(lit_scene, spp, seed=11)
-    original, delays = mi.render, iter(np.random.default_rng(1).uniform(0, 0.05, 100))
+    delays = iter(np.random.default_rng(1).uniform(0, 0.05, 100))
 
-    def busy(*args, **kwargs):
+    def busy(render_call, spp, seed):
         time.sleep(next(delays))
-        return original(*args, **kwargs)
+        return render_call()
 
-    monkeypatch.setattr(mi, "render", busy)
+    spy_on_chunks(monkeypatch, busy)
     refresh, shown = render.Refresh(0.02), []
     for progress in render.render_passes(lit_scene, spp, seed=11):
         if refresh.due(progress):

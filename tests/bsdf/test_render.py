@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import mitsuba as mi
 import numpy as np
+import pytest
 
 from scratch_iridescence.mitsuba_bridge import bsdf as scratch_bsdf
 from scratch_iridescence.mitsuba_bridge import scratch
@@ -69,6 +70,35 @@ def test02_a_scene_with_another_scratch_count_renders_without_compiling():
     launches(50, 1)
     second = launches(1234, 2)
     assert second and all(k["cache_hit"] for k in second)
+
+
+@pytest.mark.parametrize("settings", [{}, {"coherent": False}, {"crossings": "height_field"}],
+                         ids=["coherent", "incoherent", "height_field"])
+def test03_frozen_chunks_give_the_traced_image_bit_for_bit(settings, monkeypatch):
+    """Renders record each chunk size once with ``dr.freeze`` and replay it (render.render_chunks): the
+    scratch BSDF's tables are all reachable, so nothing falls back to tracing, and the image is the
+    traced one to the last bit."""
+    from scratch_iridescence.mitsuba_bridge import freezing, render
+
+    s = scratch.random_scratches(300, seed=7, width=scratch.Uniform(1e-6, 5e-6), depth=scratch.Constant(2.5e-7),
+                                 region=((0.0, 0.0), (0.5, 1.0)), length=(0.2, 0.5))
+    description = scene_dict(s)
+    description["plate"]["bsdf"].update(settings)
+    description["sensor"]["film"].update(width=16, height=16)
+    scene = mi.load_dict(description)
+    spp = 13  # chunks of 4, 4, 4 and 1 spp on a 16 x 16 film: two sizes, two replays
+    schedule = render.sample_schedule(spp, 16 * 16, 3)
+    assert [c.spp for c in schedule] == [4, 4, 4, 1]
+    traced = list(render.render_chunks(scene, schedule, spp, freeze=False))[-1].image
+
+    used = []
+    original = freezing.FrozenRender.__call__
+    monkeypatch.setattr(freezing.FrozenRender, "__call__",
+                        lambda self, *arguments: (used.append(self), original(self, *arguments))[1])
+    frozen = list(render.render_chunks(scene, schedule, spp))[-1].image
+    passes = used[0]
+    assert passes.enabled and passes.failure is None and passes.recordings <= 3
+    assert frozen.tobytes() == traced.tobytes() and np.abs(traced[..., :3]).max() > 0
 
 
 if __name__ == "__main__":  # write the test image for a look: python tests/bsdf/test_render.py out.png
