@@ -65,13 +65,19 @@ def _missing_backend_message(variant: str) -> str:
 
 
 def activate(requested: str = "auto") -> str:
-    """Set the chosen variant and register the project's plugins for it; returns the variant."""
+    """Set the chosen variant and register the project's plugins for it; returns the variant.
+
+    Also finds the global tables that frozen render passes take (:func:`.freezing.calibrate`), once
+    per variant and before any scene of it is loaded, when that costs a tiny kernel.
+    """
     import mitsuba as mi
 
     from . import register_plugins
+    from .freezing import calibrate
 
     variant = choose_variant(requested)
     if mi.variant() != variant:
         mi.set_variant(variant)
     register_plugins()
+    calibrate()
     return variant

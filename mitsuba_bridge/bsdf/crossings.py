@@ -28,7 +28,8 @@ import numpy as np
 from ..errors import ScratchUserError
 from .references import aligned
 
-__all__ = ["find_crossings", "MAX_PAIRS", "MIN_SINE", "PAIR_BUDGET", "TooManyCrossings"]
+__all__ = ["find_crossings", "extend_crossings", "crossing_tables", "pairs_of", "MAX_PAIRS", "MIN_SINE", "PAIR_BUDGET",
+           "TooManyCrossings"]
 
 #: Smallest |sin θ| between two crossing pieces that gets the correction (about 5.7°).
 MIN_SINE = 0.1
@@ -69,12 +70,8 @@ def find_crossings(a, b, references, cell_start, cell_normals, max_pairs=None):
         (max(M, 2),) float32: where the crossing lies along the lower piece (parameter in [0, 1)),
         ascending per piece, so that the kernel bisects for the crossings inside the window.
     """
-    count = len(a)
     e = b - a
-    length = np.maximum(np.hypot(e[:, 0], e[:, 1]), 1e-300)
-    direction = e / length[:, None]
-    pairs = [np.zeros((0, 2), dtype=np.int64)]
-
+    direction = _directions(e)
     starts = cell_start.astype(np.int64)
     sizes = np.diff(starts)
     cells = np.flatnonzero(sizes > 1)
@@ -82,25 +79,39 @@ def find_crossings(a, b, references, cell_start, cell_normals, max_pairs=None):
         # a cell whose pieces all run within MIN_SINE/2 of its direction holds no countable pair
         cells = cells[_largest_deviation(cells, starts, sizes, references, direction, cell_normals)
                       >= 0.5 * MIN_SINE]
-    max_pairs = MAX_PAIRS if max_pairs is None else max_pairs
-    listed = 0
-    for group in _cell_groups(cells, sizes):
-        first, second = _pairs_in_cells(group, starts, sizes, references)
-        keep = first != second
-        first, second = first[keep], second[keep]
-        found = _crossing(a, e, direction, first, second)
-        pairs.append(np.stack([np.minimum(first, second), np.maximum(first, second)], axis=1)[found])
-        listed += len(pairs[-1])
-        if listed > max_pairs:  # (counted with repeats: compact, then judge)
-            pairs = [np.unique(np.concatenate(pairs), axis=0)]
-            listed = len(pairs[0])
-            if listed > max_pairs:
-                raise TooManyCrossings(
-                    f"crossings = 'height_field': the scratches cross each other more than {max_pairs:,} times "
-                    f"(the list would take over {8 * max_pairs / 1e9:.1f} GB); render this set with crossings = "
-                    "'additive', or with fewer or shorter scratches")
-    pairs = np.unique(np.concatenate(pairs), axis=0)  # a pair may share two (dilated) cells
-    along = _parameters(a, e, pairs[:, 0], pairs[:, 1])
+    pairs = _pairs_crossing_in(cells, starts, sizes, references, a, e, direction, None, max_pairs)
+    return crossing_tables(pairs, a, b, max_pairs)
+
+
+def extend_crossings(a, b, old_pairs, new_piece, references, cell_start, cells, max_pairs=None):
+    """:func:`find_crossings` of a set whose pieces ``~new_piece`` were listed before (a stroke appended the
+    others): ``old_pairs`` (M, 2), those pieces' pairs renumbered to the new table order (lower first), and
+    the pairs of the new pieces, candidates in ``cells`` (every cell a new piece is listed in: the cell
+    of a crossing point lists both pieces).  The same three arrays as a full :func:`find_crossings` of
+    the set, bit for bit: a pair's parameter is computed from the same float64 ends, and the pairs are
+    ordered as there.
+    """
+    e = b - a
+    starts = cell_start.astype(np.int64)
+    sizes = np.diff(starts)
+    cells = cells[sizes[cells] > 1]
+    pairs = _pairs_crossing_in(cells, starts, sizes, references, a, e, _directions(e), new_piece, max_pairs)
+    return crossing_tables(np.concatenate([old_pairs.astype(np.int64), pairs]), a, b, max_pairs)
+
+
+def pairs_of(crossing_start, crossing_partner):
+    """The listed pairs ``(lower, partner)`` (M, 2) of :func:`find_crossings`' CSR arrays."""
+    count = np.diff(crossing_start.astype(np.int64))
+    lower = np.repeat(np.arange(len(count)), count)
+    return np.stack([lower, crossing_partner[:len(lower)].astype(np.int64)], axis=1)
+
+
+def crossing_tables(pairs, a, b, max_pairs=None):
+    """The CSR arrays of :func:`find_crossings` from its pairs (``(M, 2)``, repeats allowed)."""
+    count = len(a)
+    pairs = np.unique(np.concatenate([np.zeros((0, 2), dtype=np.int64), pairs]), axis=0)
+    _check_count(len(pairs), max_pairs)
+    along = _parameters(a, b - a, pairs[:, 0], pairs[:, 1])
     order = np.lexsort((along, pairs[:, 0]))  # by piece, then along it: the kernel bisects
     pairs, along = pairs[order], along[order].astype(np.float32)
     crossing_start = np.zeros(count + 1, dtype=np.uint32)
@@ -112,6 +123,41 @@ def find_crossings(a, b, references, cell_start, cell_normals, max_pairs=None):
     crossing_along = np.zeros(len(partner), dtype=np.float32)
     crossing_along[:len(pairs)] = along
     return aligned(crossing_start), aligned(partner), aligned(crossing_along)
+
+
+def _directions(e):
+    length = np.maximum(np.hypot(e[:, 0], e[:, 1]), 1e-300)
+    return e / length[:, None]
+
+
+def _check_count(listed, max_pairs):
+    max_pairs = MAX_PAIRS if max_pairs is None else max_pairs
+    if listed > max_pairs:
+        raise TooManyCrossings(
+            f"crossings = 'height_field': the scratches cross each other more than {max_pairs:,} times "
+            f"(the list would take over {8 * max_pairs / 1e9:.1f} GB); render this set with crossings = "
+            "'additive', or with fewer or shorter scratches")
+
+
+def _pairs_crossing_in(cells, starts, sizes, references, a, e, direction, new_piece, max_pairs):
+    """The crossing pairs ``(lower, higher)`` among the pieces listed together in ``cells`` (repeats where a
+    pair shares cells); with ``new_piece`` (a mask over the pieces) only pairs holding a new piece."""
+    max_pairs = MAX_PAIRS if max_pairs is None else max_pairs
+    pairs, listed = [np.zeros((0, 2), dtype=np.int64)], 0
+    for group in _cell_groups(cells, sizes):
+        first, second = _pairs_in_cells(group, starts, sizes, references)
+        keep = first != second
+        if new_piece is not None:
+            keep &= new_piece[first] | new_piece[second]
+        first, second = first[keep], second[keep]
+        found = _crossing(a, e, direction, first, second)
+        pairs.append(np.stack([np.minimum(first, second), np.maximum(first, second)], axis=1)[found])
+        listed += len(pairs[-1])
+        if listed > max_pairs:  # (counted with repeats: compact, then judge)
+            pairs = [np.unique(np.concatenate(pairs), axis=0)]
+            listed = len(pairs[0])
+            _check_count(listed, max_pairs)
+    return np.concatenate(pairs)
 
 
 def _largest_deviation(cells, starts, sizes, references, direction, cell_normals, block=1 << 22):

@@ -7,14 +7,16 @@ scratches, so :func:`update_tables` keeps the previous build's cell size (no
 search) and, when the new pieces stay inside the grid's UV box, merges them
 into the previous tables: the new segment rows are inserted at their cells'
 places, old piece numbers are shifted, and only the cells the new pieces cross
-get their normal, offsets, spread and order recomputed.  The result is
+get their normal, offsets, spread and order recomputed; with ``crossings =
+"height_field"`` the previous crossing pairs are renumbered and the new pieces'
+pairs are looked for in those cells only.  The result is
 **identical** (bit for bit) to ``build_tables(scratches, cell_size)`` at that
 cell size: every per-piece quantity is computed elementwise as there, and the
 per-cell direction sums are added in the same order and chunks as
 :func:`.references.sorted_references` adds them (tested).
 
 Anything else (first build, removed or edited scratches, a new piece outside
-the box, another cell-size hint) is a full build: at the previous cell size
+the box, another cell-size hint, the crossings option switched) is a full build: at the previous cell size
 when scratches were only appended, else with the automatic search.  The cell
 size then stays the one searched for the set before the strokes; it only
 changes the acceleration grid, not what the kernel computes.
@@ -26,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..scratch import ScratchSet
+from .crossings import extend_crossings, pairs_of
 from .references import CHUNK, cell_references, doubled_angles, empty_aligned, normals, offsets_in_cell
 from .tables import (GridTables, _cells, _no_crossings, _pieces, _reference_limit, _segment_rows, build_sorted,
                      continuations)
@@ -46,6 +49,7 @@ class TableCache:
     a: np.ndarray | None  #: None above MAX_CACHED_PIECES pieces (no extension then)
     b: np.ndarray | None
     cell_size_hint: float  #: the hint the first full build got (0: automatic)
+    crossings: bool = False  #: whether the tables list crossing pairs (``crossings = "height_field"``)
     incremental: bool = False  #: whether this build extended the previous one (for tests and statistics)
 
 
@@ -61,8 +65,8 @@ def update_tables(previous: TableCache | None, scratches: ScratchSet, cell_size:
     cell_size : float
         The BSDF's cell-size hint (0: automatic), as for :func:`.tables.build_tables`.
     crossings : bool
-        List crossing pairs (``crossings = "height_field"``): every update is then a full build,
-        since the pairs of the appended pieces are not merged incrementally.
+        List crossing pairs (``crossings = "height_field"``): an extension keeps the previous pairs
+        (renumbered) and adds those of the appended pieces, found in the cells they are listed in.
 
     Returns
     -------
@@ -70,23 +74,20 @@ def update_tables(previous: TableCache | None, scratches: ScratchSet, cell_size:
         ``.tables`` equals ``build_tables(scratches, c)`` where ``c`` is ``cell_size``, or, after
         appended scratches under an automatic hint, the cell size of ``previous``.
     """
-    if crossings:
-        tables, _, _ = build_sorted(scratches, cell_size, crossings=True)
-        return TableCache(scratches, tables, None, None, cell_size)
     if (previous is None or previous.a is None or previous.cell_size_hint != cell_size
-            or not _appends(previous.scratches, scratches)):
-        return _full(scratches, cell_size, cell_size)
+            or previous.crossings != crossings or not _appends(previous.scratches, scratches)):
+        return _full(scratches, cell_size, cell_size, crossings)
     merged = _extend(previous, scratches)
     if merged is not None:
         return merged
-    return _full(scratches, previous.tables.cell_size, cell_size)
+    return _full(scratches, previous.tables.cell_size, cell_size, crossings)
 
 
-def _full(scratches, cell_size, hint) -> TableCache:
-    tables, a, b = build_sorted(scratches, cell_size)
+def _full(scratches, cell_size, hint, crossings) -> TableCache:
+    tables, a, b = build_sorted(scratches, cell_size, crossings)
     if len(a) > MAX_CACHED_PIECES:
         a = b = None
-    return TableCache(scratches, tables, a, b, hint)
+    return TableCache(scratches, tables, a, b, hint, crossings)
 
 
 def _appends(old: ScratchSet, new: ScratchSet) -> bool:
@@ -107,7 +108,7 @@ def _extend(previous: TableCache, scratches: ScratchSet) -> TableCache | None:
     added = scratches.select(np.arange(previous.scratches.count, scratches.count))
     na, nb, nw, nd = _pieces(added)
     if len(na) == 0:  # nothing that scatters: the same tables
-        return TableCache(scratches, old, previous.a, previous.b, previous.cell_size_hint, True)
+        return TableCache(scratches, old, previous.a, previous.b, previous.cell_size_hint, previous.crossings, True)
     if old.piece_count == 0:
         return None
     h, margin = old.cell_size, old.margin
@@ -185,7 +186,14 @@ def _extend(previous: TableCache, scratches: ScratchSet) -> TableCache | None:
     cell_start = empty_aligned(cell_count + 1, np.uint32)
     cell_start[0] = 0
     np.cumsum(np.bincount(all_cells, minlength=cell_count), out=cell_start[1:])
-    crossing_start, crossing_partner, crossing_along = _no_crossings(n_old + n_new)
+    if previous.crossings:  # the old pairs renumbered, and the new pieces' pairs from the cells they touch
+        new_piece = np.zeros(n_old + n_new, dtype=bool)
+        new_piece[new_index] = True
+        crossing_start, crossing_partner, crossing_along = extend_crossings(
+            a, b, old_index[pairs_of(old.crossing_start, old.crossing_partner)], new_piece, references,
+            cell_start, touched)
+    else:
+        crossing_start, crossing_partner, crossing_along = _no_crossings(n_old + n_new)
     tables = GridTables(segments=segments, references=references, offsets=offsets, cell_frames=frames,
                         cell_start=cell_start, origin=old.origin, cell_size=h, shape=old.shape,
                         piece_count=n_old + n_new, margin=margin, crossing_start=crossing_start,
@@ -193,4 +201,4 @@ def _extend(previous: TableCache, scratches: ScratchSet) -> TableCache | None:
                         continuation=continuations(a, b, segments))
     if len(a) > MAX_CACHED_PIECES:
         a = b = None
-    return TableCache(scratches, tables, a, b, previous.cell_size_hint, True)
+    return TableCache(scratches, tables, a, b, previous.cell_size_hint, previous.crossings, True)

@@ -17,6 +17,7 @@ Targets (issue 14) on the 2-core CPU: stroke → first updated image ≤ 0.2 s,
 
 Run: ``.venv/bin/python tests/bench/bench_viewport.py [--moves 50 --strokes 20]``; ``--full-builds``
 rebuilds the whole scratch tables on every stroke (the reference for ``bsdf/incremental.py``),
+``--crossings height_field`` paints with the height-field crossings (strokes extend the pair list too),
 ``--strip-pixels 0`` renders whole passes instead of strips (the reference for the strips): run
 them back to back and compare.
 """
@@ -90,6 +91,8 @@ def main():
     parser.add_argument("--no-freeze", action="store_true", help="trace every pass (no dr.freeze)")
     parser.add_argument("--full-builds", action="store_true",
                         help="rebuild the whole scratch tables on each stroke (the reference for bsdf/incremental.py)")
+    parser.add_argument("--crossings", default="additive", choices=("additive", "height_field"),
+                        help="the plate's Crossings setting (height_field: strokes also extend the crossing pairs)")
     parser.add_argument("--strip-pixels", type=int, default=None,
                         help="pixels per strip of a CPU pass (0: whole passes, the reference for the strips)")
     args = parser.parse_args()
@@ -100,8 +103,8 @@ def main():
     if args.full_builds:
         from scratch_iridescence.mitsuba_bridge.bsdf import incremental, plugin
 
-        plugin.update_tables = lambda previous, scratches, cell_size: incremental.update_tables(
-            None, scratches, cell_size)
+        plugin.update_tables = lambda previous, scratches, cell_size, crossings=False: incremental.update_tables(
+            None, scratches, cell_size, crossings=crossings)
 
     import bpy
 
@@ -114,6 +117,7 @@ def main():
     scene = bpy.context.scene
     plate = build_scene(scene, resolution=(args.width, args.height))
     scene.scratch_iridescence.viewport_freeze = not args.no_freeze
+    plate.scratch_iridescence.crossings = args.crossings
     scene.scratch_iridescence.viewport_samples = 16  # enough for 4 single-sample and 3 four-sample passes
     bpy.context.view_layer.objects.active = plate
     camera = scene.camera

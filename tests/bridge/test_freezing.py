@@ -106,3 +106,14 @@ def test_a_ctrl_c_while_recording_is_handed_on_and_keeps_freezing_enabled(varian
                 passes(scene, 0, 1, 0)
         del scene
     assert frozen.enabled and frozen.failure is None
+
+
+def test05_activating_a_variant_finds_the_global_tables_before_any_scene_exists(variant):
+    """variants.activate calibrates at once: found later, with a scratch BSDF alive, the calibration's
+    virtual BSDF call would compile the whole scratch model into its kernel (freezing.calibrate)."""
+    import mitsuba as mi
+
+    from scratch_iridescence.mitsuba_bridge import variants
+
+    assert variants.activate(mi.variant()) == mi.variant()
+    assert mi.variant() in freezing._globals and freezing.mitsuba_globals() is freezing._globals[mi.variant()]

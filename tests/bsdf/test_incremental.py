@@ -83,14 +83,29 @@ def test_sets_over_the_cache_limit_are_always_built_in_full(monkeypatch):
     assert_same(extended.tables, build_tables(more))
 
 
-def test_with_crossing_pairs_every_update_is_a_full_build_listing_the_new_pairs():
-    # The appended pieces' crossing pairs are not merged incrementally: with crossings = "height_field"
-    # an update is a fresh build (pairs included), and an additive extension lists no pairs.
-    scratches = plate(200, 7, region=((0.3, 0.3), (0.7, 0.7)))
+def test_with_crossing_pairs_strokes_extend_the_pair_list_exactly_as_a_fresh_build():
+    """crossings = "height_field": the old pairs are renumbered and the stroke's own looked for in the cells
+    its pieces touch; pairs, their order and their parameters equal a fresh build's bit for bit."""
+    scratches = plate(400, 7, region=((0.3, 0.3), (0.7, 0.7)))
     cache = update_tables(None, scratches, crossings=True)
+    kept = cache.tables.cell_size
+    assert not cache.incremental and cache.tables.crossing_count > 100
+    assert_same(cache.tables, build_tables(scratches, crossings=True))
+    for index, count in enumerate((1, 3, 6)):  # strokes crossing many scratches (and, the last, themselves)
+        before = cache.tables.crossing_count
+        scratches = ScratchSet.concatenate([scratches, plate(count, 20 + index, region=((0.35, 0.35), (0.65, 0.65)))])
+        cache = update_tables(cache, scratches, crossings=True)
+        assert cache.incremental and cache.crossings and cache.tables.crossing_count > before
+        assert_same(cache.tables, build_tables(scratches, kept, crossings=True))
+
+
+def test_switching_the_crossings_option_is_a_full_build():
+    scratches = plate(200, 7, region=((0.3, 0.3), (0.7, 0.7)))
     stroke = ScratchSet.concatenate([scratches, plate(3, 8, region=((0.4, 0.4), (0.6, 0.6)))])
-    updated = update_tables(cache, stroke, crossings=True)
-    assert not updated.incremental and updated.tables.crossing_count > cache.tables.crossing_count > 0
-    assert_same(updated.tables, build_tables(stroke, crossings=True))
-    additive = update_tables(update_tables(None, scratches), stroke)
-    assert additive.incremental and additive.tables.crossing_count == 0
+    additive = update_tables(None, scratches)
+    switched = update_tables(additive, stroke, crossings=True)
+    assert not switched.incremental and switched.tables.crossing_count > 0
+    assert_same(switched.tables, build_tables(stroke, crossings=True))
+    back = update_tables(update_tables(None, scratches, crossings=True), stroke)
+    assert not back.incremental and back.tables.crossing_count == 0
+    assert_same(back.tables, build_tables(stroke))
