@@ -109,11 +109,14 @@ def pairs_of(crossing_start, crossing_partner):
 def crossing_tables(pairs, a, b, max_pairs=None):
     """The CSR arrays of :func:`find_crossings` from its pairs (``(M, 2)``, repeats allowed)."""
     count = len(a)
-    pairs = np.unique(np.concatenate([np.zeros((0, 2), dtype=np.int64), pairs]), axis=0)
+    pairs = _unique_pairs(pairs, count)
     _check_count(len(pairs), max_pairs)
-    along = _parameters(a, b - a, pairs[:, 0], pairs[:, 1])
-    order = np.lexsort((along, pairs[:, 0]))  # by piece, then along it: the kernel bisects
-    pairs, along = pairs[order], along[order].astype(np.float32)
+    along = _parameters(a, b - a, pairs[:, 0], pairs[:, 1]).astype(np.float32) + np.float32(0.0)  # (no -0)
+    # by piece, then along it (the kernel bisects), equal parameters by partner: one sort of a uint64 key
+    # (a non-negative float32's bits order as its values), the pairs being in (piece, partner) order
+    key = (pairs[:, 0].astype(np.uint64) << np.uint64(32)) | along.view(np.uint32).astype(np.uint64)
+    order = np.argsort(key, kind="stable")
+    pairs, along = pairs[order], along[order]
     crossing_start = np.zeros(count + 1, dtype=np.uint32)
     np.cumsum(np.bincount(pairs[:, 0], minlength=count), out=crossing_start[1:])
     # padded to two entries: Dr.Jit turns a gather from a one-element array into a broadcast, which
@@ -123,6 +126,13 @@ def crossing_tables(pairs, a, b, max_pairs=None):
     crossing_along = np.zeros(len(partner), dtype=np.float32)
     crossing_along[:len(pairs)] = along
     return aligned(crossing_start), aligned(partner), aligned(crossing_along)
+
+
+def _unique_pairs(pairs, count):
+    """The distinct rows of ``pairs`` (M, 2), sorted by first then second column: ``np.unique(axis=0)``'s
+    result, through one int64 key per pair (several times faster than comparing rows)."""
+    key = np.unique(pairs[:, 0].astype(np.int64) * count + pairs[:, 1])
+    return np.stack(np.divmod(key, count), axis=1)
 
 
 def _directions(e):
@@ -154,7 +164,7 @@ def _pairs_crossing_in(cells, starts, sizes, references, a, e, direction, new_pi
         pairs.append(np.stack([np.minimum(first, second), np.maximum(first, second)], axis=1)[found])
         listed += len(pairs[-1])
         if listed > max_pairs:  # (counted with repeats: compact, then judge)
-            pairs = [np.unique(np.concatenate(pairs), axis=0)]
+            pairs = [_unique_pairs(np.concatenate(pairs), len(a))]
             listed = len(pairs[0])
             _check_count(listed, max_pairs)
     return np.concatenate(pairs)
