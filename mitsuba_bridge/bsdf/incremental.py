@@ -16,8 +16,9 @@ per-cell direction sums are added in the same order and chunks as
 :func:`.references.sorted_references` adds them (tested).
 
 Anything else (first build, removed or edited scratches, a new piece outside
-the box, another cell-size hint, the crossings option switched) is a full build: at the previous cell size
-when scratches were only appended, else with the automatic search.  The cell
+the box, another cell-size hint, the crossings option switched) is a full
+build: at the previous cell size when scratches were only appended, else with
+the automatic search.  The cell
 size then stays the one searched for the set before the strokes; it only
 changes the acceleration grid, not what the kernel computes.
 """
