@@ -15,7 +15,7 @@ from pathlib import Path
 
 from .figure import PAPER_CORES, PAPER_SPP
 
-__all__ = ["write", "load_records", "benchmark_rows"]
+__all__ = ["write", "load_records", "load_reference", "benchmark_rows"]
 
 GALLERY_DIR = "gallery"
 
@@ -221,8 +221,27 @@ def _anchor(figure) -> str:
 
 
 # ----------------------------------------------------------------- benchmarks
-def _benchmarks(figures, records: dict) -> str:
+def load_reference(output: Path) -> dict | None:
+    """The machine reference measured by the run that rendered into ``output`` (None before any)."""
+    path = Path(output) / "reference.json"
+    return json.loads(path.read_text()) if path.exists() else None
+
+
+def _reference_lines(reference: dict | None) -> list[str]:
+    if reference is None:
+        return ["**Machine reference**: not measured (statistics from before `make paper` measured it).", ""]
+    return [f"**Machine reference** = Mitsuba's own Cornell box (`mi.cornell_box()`, 256², 64 spp, same variant, "
+            f"no add-on code; four renders timed after one that compiles) in a fresh process before the first "
+            f"picture and after the last: "
+            f"{reference['before']:.3g} and {reference['after']:.3g} samples/core-s. The paper's times are fixed, so "
+            "the ratios against them move with the machine (two development machines of this project differed "
+            "by 1.8× running the same code); *÷ reference* (samples/core-s over the reference's mean) compares "
+            "across machines and runs.", ""]
+
+
+def _benchmarks(figures, records: dict, reference: dict | None = None) -> str:
     rows = benchmark_rows(figures, records)
+    unit = reference["samples_per_core_s"] if reference else None
     lines = ["# Benchmarks: the paper's scenes", "",
              f"Measured by `make paper` ({time.strftime('%Y-%m-%d')}) on the development machine: {_machine()}, "
              "shared with other work, so wall times are noisy; CPU times (core-seconds) less so. Every picture "
@@ -238,10 +257,11 @@ def _benchmarks(figures, records: dict) -> str:
              "**Per wavelength sample** is that ratio divided by 4; the target (issue 12) is at least 2× "
              "the paper per core and per wavelength sample on every scene. Renders beyond the paper (options the "
              "paper does not have) have no paper time.", "",
-             "| picture | pixels × spp | render (wall) | of it passes | samples / core-s | passes only | paper | "
-             "paper samples / core-s | ratio | per wavelength sample | peak memory | scratch set → BSDF | "
-             "scratches (segments) |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             *_reference_lines(reference),
+             "| picture | pixels × spp | render (wall) | of it passes | samples / core-s | passes only | "
+             "÷ reference | paper | paper samples / core-s | ratio | per wavelength sample | peak memory | "
+             "scratch set → BSDF | scratches (segments) |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         if r["paper_per_core_s"]:
             paper = f"{r['paper_minutes']:g} min" + ("" if r["paper_mp"] == 4.0 else f" ({r['paper_mp']:g} MP)")
@@ -249,9 +269,11 @@ def _benchmarks(figures, records: dict) -> str:
             versus = f"{r['paper_per_core_s']:.3g} | {ratio:.2g}× | {ratio / 4:.2f}×"
         else:
             paper, versus = "—", "— | — | —"
+        relative = f"{r['per_core_s'] / unit:.3f}" if unit else "—"
         lines.append(
             f"| {r['label']} | {r['pixels']} | {r['render_s']:.0f} s | {r['passes_s']:.0f} s | "
-            f"{r['per_core_s']:.3g} | {r['passes_per_core_s']:.3g} | {paper} | {versus} | {r['peak_mb']:,.0f} MB | "
+            f"{r['per_core_s']:.3g} | {r['passes_per_core_s']:.3g} | "
+            f"{relative} | {paper} | {versus} | {r['peak_mb']:,.0f} MB | "
             f"{r['load_s']:.2f} s | {r['scratches']:,} ({r['segments']:,}) |")
     lines += ["",
               "* **Peak memory** is the render process's maximum resident set (`ru_maxrss`): Blender (bpy), "
@@ -278,4 +300,4 @@ def write(docs: Path, records: dict, validation: dict | None, figures, output: P
     docs = Path(docs)
     _copy_pictures(docs, records, validation, output)
     (docs / "gallery.md").write_text(_gallery(figures, records, validation))
-    (docs / "benchmarks.md").write_text(_benchmarks(figures, records))
+    (docs / "benchmarks.md").write_text(_benchmarks(figures, records, load_reference(output)))

@@ -11,6 +11,9 @@ compiled kernels never flatter the next:
    transform); then, apart from the render, times loading the object's
    scratch set into the BSDF.  Its statistics go to ``<name>.json``.
 
+Before the first picture and after the last, a third worker renders Mitsuba's own Cornell box
+(``reference``): the machine reference that the benchmark table divides its rows by.
+
 Afterwards the numerical validation (:mod:`...mitsuba_bridge.validation`)
 draws its figure, and :mod:`.pages` writes ``docs/gallery.md``,
 ``docs/benchmarks.md`` and the small PNGs in ``docs/gallery/``.
@@ -130,6 +133,36 @@ def render_worker(blend: Path, output: Path) -> dict:
             "exr": str(stem) + ".exr", "png": str(stem) + ".png", **_scratch_statistics(bpy)}
 
 
+#: The machine reference: Mitsuba's own Cornell box (no scratches, no add-on), this size and spp.
+REFERENCE_RESOLUTION, REFERENCE_SPP, REFERENCE_RENDERS = 256, 64, 4
+
+
+def reference_worker() -> dict:
+    """Samples per core-second of Mitsuba's Cornell box on the CPU variant the pictures use.
+
+    The paper's times are fixed numbers, so a picture's ratio against them moves with the machine
+    (development machines differ by 1.8x between sessions); this render shares no code with the
+    add-on, so rows divided by it compare across runs and machines.  The first render compiles the
+    kernel (cached), the next four are timed.
+    """
+    import drjit as dr
+    import mitsuba as mi
+
+    from ..mitsuba_bridge import variants
+
+    variant = variants.activate("llvm_ad_spectral")
+    description = mi.cornell_box()
+    description["sensor"]["film"].update(width=REFERENCE_RESOLUTION, height=REFERENCE_RESOLUTION)
+    scene = mi.load_dict(description)
+    dr.eval(mi.render(scene, spp=REFERENCE_SPP, seed=0))
+    cpu = _cpu_seconds()
+    for _ in range(REFERENCE_RENDERS):
+        dr.eval(mi.render(scene, spp=REFERENCE_SPP, seed=0))  # the same call replays the cached kernel
+    cpu = _cpu_seconds() - cpu
+    return {"variant": variant, "resolution": REFERENCE_RESOLUTION, "spp": REFERENCE_SPP,
+            "samples_per_core_s": REFERENCE_RENDERS * REFERENCE_RESOLUTION ** 2 * REFERENCE_SPP / cpu}
+
+
 # --------------------------------------------------------------- the runner
 def _run_worker(args: list[str], label: str) -> dict:
     """Run a worker in a fresh interpreter, showing its progress now and then; return its statistics."""
@@ -153,6 +186,12 @@ def _run_worker(args: list[str], label: str) -> dict:
     if passes_s is not None:
         result["passes_s"] = passes_s
     return result
+
+
+def measure_reference() -> float:
+    """The machine reference (:func:`reference_worker`) in a fresh process, samples per core-second."""
+    print("Machine reference (Mitsuba's Cornell box)", flush=True)
+    return _run_worker(["reference"], "reference")["samples_per_core_s"]
 
 
 def run_all(output: Path, only=None, scale: float = 1.0, samples_scale: float = 1.0) -> list[dict]:
@@ -190,6 +229,7 @@ def main(argv=None) -> int:
     render = sub.add_parser("render", help="(worker) render a saved scene")
     render.add_argument("blend", type=Path)
     render.add_argument("--output", type=Path, required=True)
+    sub.add_parser("reference", help="(worker) time the machine reference render")
     parser.add_argument("--output", type=Path, default=Path("out/paper"), help="renders and statistics")
     parser.add_argument("--docs", type=Path, default=Path("docs"), help="where gallery.md and benchmarks.md go")
     parser.add_argument("--only", nargs="+", choices=FIGURE_MODULES, help="render only these figures")
@@ -209,11 +249,21 @@ def main(argv=None) -> int:
         stats = render_worker(args.blend.resolve(), args.output.resolve())
         print("RESULT " + json.dumps(stats), flush=True)
         return 0
+    if args.command == "reference":
+        print("RESULT " + json.dumps(reference_worker()), flush=True)
+        return 0
 
     started = time.perf_counter()
     output = args.output.resolve()
     output.mkdir(parents=True, exist_ok=True)
-    records = [] if args.pages_only else run_all(output, args.only, args.scale, args.samples_scale)
+    records = []
+    if not args.pages_only:
+        # Before and after the pictures: their mean divides the rows, their difference shows the drift.
+        before = measure_reference()
+        records = run_all(output, args.only, args.scale, args.samples_scale)
+        after = measure_reference()
+        (output / "reference.json").write_text(json.dumps(
+            {"before": before, "after": after, "samples_per_core_s": 0.5 * (before + after)}, indent=1))
     validation = None
     if not (args.no_validation or args.pages_only):
         from ..mitsuba_bridge import validation as numerics

@@ -209,3 +209,9 @@ def test10_paper_runner_builds_renders_and_writes_the_pages(tmp_path):
     gallery, benchmarks = (docs / "gallery.md").read_text(), (docs / "benchmarks.md").read_text()
     assert "](gallery/fig09_grating-coherent.png)" in gallery and "## Fig. 9" in gallery
     assert "| Fig. 9 coherent | 36 × 22 × 5 |" in benchmarks
+    # The machine reference, measured before and after the pictures, divides every row.
+    reference = pages.load_reference(output)
+    assert reference["before"] > 0 and reference["after"] > 0
+    relative = row["per_core_s"] / reference["samples_per_core_s"]
+    assert f"| {row['passes_per_core_s']:.3g} | {relative:.3f} |" in benchmarks
+    assert f"{reference['before']:.3g} and {reference['after']:.3g} samples/core-s" in benchmarks
