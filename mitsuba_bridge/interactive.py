@@ -285,7 +285,7 @@ class Session:
         """Place every shape named ``shape_name`` with ``matrix`` (4×4, object → world): its vertices only."""
         import mitsuba as mi
 
-        from .builder.resources import world_geometry
+        from .builder.resources import mesh_buffer, world_geometry
 
         began = time.perf_counter()
         matrix = np.asarray(matrix, dtype=np.float64)
@@ -298,11 +298,11 @@ class Session:
             old, shapes[i] = shapes[i], dataclasses.replace(shapes[i], to_world=matrix)
             positions, faces, normals = world_geometry(shapes[i])
             prefix = self._shape_keys[i] + "."
-            values[prefix + "vertex_positions"] = mi.Float(positions.ravel())
+            values[prefix + "vertex_positions"] = mesh_buffer(mi.Float, positions)
             if (np.linalg.det(old.to_world[:3, :3]) < 0) != (np.linalg.det(matrix[:3, :3]) < 0):
-                values[prefix + "faces"] = mi.UInt32(faces.ravel())
+                values[prefix + "faces"] = mesh_buffer(mi.UInt32, faces)
             if normals is not None:
-                values[prefix + "vertex_normals"] = mi.Float(normals.ravel())
+                values[prefix + "vertex_normals"] = mesh_buffer(mi.Float, normals)
         self.description = dataclasses.replace(self.description, shapes=tuple(shapes))
         self._assign(values)
         self._updated("transform", began)

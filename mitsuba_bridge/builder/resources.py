@@ -20,11 +20,12 @@ from pathlib import Path
 import numpy as np
 
 from .. import scratch as scratch_io
+from ..bsdf.references import aligned
 from ..colour import srgb_to_linear
 from ..scene import MeshData, ScratchedMetal, Shape, Texture
 from .transform import to_mitsuba
 
-__all__ = ["InMemory", "ToFolder", "world_geometry", "safe_name"]
+__all__ = ["InMemory", "ToFolder", "world_geometry", "safe_name", "mesh_buffer"]
 
 # Image rows run top-down, Blender's v runs bottom-up: look textures up at (u, 1 - v).
 _FLIP_V = np.array([[1.0, 0, 0, 0], [0, -1.0, 0, 1.0], [0, 0, 1.0, 0], [0, 0, 0, 1.0]])
@@ -125,14 +126,27 @@ class InMemory:
         result = mi.Mesh(name, len(positions), len(faces), props=props,
                          has_vertex_normals=normals is not None, has_vertex_texcoords=uvs is not None)
         params = mi.traverse(result)
-        params["vertex_positions"] = mi.Float(np.ascontiguousarray(positions, dtype=np.float32).ravel())
-        params["faces"] = mi.UInt32(np.ascontiguousarray(faces, dtype=np.uint32).ravel())
+        params["vertex_positions"] = mesh_buffer(mi.Float, positions)
+        params["faces"] = mesh_buffer(mi.UInt32, faces)
         if normals is not None:
-            params["vertex_normals"] = mi.Float(np.ascontiguousarray(normals, dtype=np.float32).ravel())
+            params["vertex_normals"] = mesh_buffer(mi.Float, normals)
         if uvs is not None:
-            params["vertex_texcoords"] = mi.Float(np.ascontiguousarray(uvs, dtype=np.float32).ravel())
+            params["vertex_texcoords"] = mesh_buffer(mi.Float, uvs)
         params.update()
         return result
+
+
+def mesh_buffer(kind, values):
+    """A flat Dr.Jit array (``mi.Float`` or ``mi.UInt32``) of a mesh attribute, on a 64-byte boundary.
+
+    Dr.Jit's CPU backend maps numpy's memory without copying and gathers from it
+    in packets or element by element depending on its alignment: a buffer that
+    lands wherever ``malloc`` puts it gives every process other kernels, which
+    then miss Dr.Jit's kernel cache and compile again (the height field's for
+    ~45 s on a 2-core machine; docs/bsdf.md, Performance).
+    """
+    dtype = np.uint32 if kind.__name__.startswith("UInt") else np.float32
+    return kind(aligned(np.ascontiguousarray(values, dtype=dtype).ravel()))
 
 
 class ToFolder:

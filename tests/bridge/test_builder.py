@@ -301,3 +301,26 @@ def test_shapes_sharing_a_material_share_one_bsdf(variant):
     scene = builder.load_scene(simple_scene(shapes=shapes), S.RenderSettings())
     bsdfs = {id(shape.bsdf()) for shape in scene.shapes()}
     assert len(scene.shapes()) == 3 and len(bsdfs) == 1
+
+
+def test_mesh_buffers_start_on_64_bytes_whatever_numpy_gave(variant):
+    """Dr.Jit maps numpy's memory and gathers in packets or element by element by its alignment: unaligned
+    mesh buffers gave each process other kernels, which missed the kernel cache (docs/bsdf.md, Performance)."""
+    def misaligned(array):  # the same values 4 bytes past a 64-byte boundary: never aligned
+        raw = np.zeros(array.nbytes + 128, np.uint8)
+        start = (-raw.ctypes.data) % 64 + 4
+        view = raw[start:start + array.nbytes].view(array.dtype).reshape(array.shape)
+        view[...] = array
+        return view
+
+    plain = quad(1.0)
+    mesh = S.MeshData("q", *(misaligned(getattr(plain, name)) for name in ("positions", "faces")),
+                      misaligned(np.tile([0.0, 0.0, 1.0], (4, 1)).astype(np.float32)), misaligned(plain.uvs))
+    assert all(getattr(mesh, name).ctypes.data % 64 == 4 for name in ("positions", "faces", "normals", "uvs"))
+    scene = builder.load_scene(simple_scene(shapes=[S.Shape("q", mesh, np.eye(4), "grey")]), S.RenderSettings())
+    params = mi.traverse(scene.shapes()[0])
+    for key, values in (("vertex_positions", plain.positions), ("faces", plain.faces), ("vertex_texcoords", plain.uvs)):
+        buffer = np.asarray(params[key])
+        assert buffer.ctypes.data % 64 == 0, key
+        assert np.array_equal(buffer, values.ravel()), key
+    assert np.asarray(params["vertex_normals"]).ctypes.data % 64 == 0
