@@ -145,7 +145,7 @@ def test09_metal_settings_update_in_place(session):
 
 @pytest.mark.parametrize("option", [
     {"depth_phase": "incidence"},
-    # The height field's kernels compile for ~100 s on a cold cache (2-core machine; docs/bsdf.md, Limitations).
+    # The height field's kernels compile for ~100 s on a cold cache (2-core machine; docs/bsdf.md, Performance).
     pytest.param({"crossings": "height_field", "depth_phase": "incidence"}, marks=pytest.mark.slow),
 ], ids=["depth_phase", "crossings"])
 def test09b_crossing_and_depth_phase_options_rebuild_the_bsdf(session, option):
