@@ -300,7 +300,7 @@ class Session:
             prefix = self._shape_keys[i] + "."
             values[prefix + "vertex_positions"] = mesh_buffer(mi.Float, positions)
             if (np.linalg.det(old.to_world[:3, :3]) < 0) != (np.linalg.det(matrix[:3, :3]) < 0):
-                values[prefix + "faces"] = mesh_buffer(mi.UInt32, faces)
+                values[prefix + "faces"] = mesh_buffer(mi.UInt32, faces, np.uint32)
             if normals is not None:
                 values[prefix + "vertex_normals"] = mesh_buffer(mi.Float, normals)
         self.description = dataclasses.replace(self.description, shapes=tuple(shapes))

@@ -127,7 +127,7 @@ class InMemory:
                          has_vertex_normals=normals is not None, has_vertex_texcoords=uvs is not None)
         params = mi.traverse(result)
         params["vertex_positions"] = mesh_buffer(mi.Float, positions)
-        params["faces"] = mesh_buffer(mi.UInt32, faces)
+        params["faces"] = mesh_buffer(mi.UInt32, faces, np.uint32)
         if normals is not None:
             params["vertex_normals"] = mesh_buffer(mi.Float, normals)
         if uvs is not None:
@@ -136,8 +136,9 @@ class InMemory:
         return result
 
 
-def mesh_buffer(kind, values):
-    """A flat Dr.Jit array (``mi.Float`` or ``mi.UInt32``) of a mesh attribute, on a 64-byte boundary.
+def mesh_buffer(kind, values, dtype=np.float32):
+    """A flat Dr.Jit array ``kind`` (``mi.Float``; ``mi.UInt32`` with ``dtype=np.uint32``) of a mesh
+    attribute, on a 64-byte boundary.
 
     Dr.Jit's CPU backend maps numpy's memory without copying and gathers from it
     in packets or element by element depending on its alignment: a buffer that
@@ -145,7 +146,6 @@ def mesh_buffer(kind, values):
     then miss Dr.Jit's kernel cache and compile again (the height field's for
     ~45 s on a 2-core machine; docs/bsdf.md, Performance).
     """
-    dtype = np.uint32 if kind.__name__.startswith("UInt") else np.float32
     return kind(aligned(np.ascontiguousarray(values, dtype=dtype).ravel()))
 
 
