@@ -28,6 +28,7 @@ import numpy as np
 
 from .periodic import periodic_families
 from .segment import SegmentGeometry
+from .references import aligned_array
 from .tables import CELL_DILATION, GridTables, aligned, empty_aligned
 
 __all__ = ["Grid", "LocalJacobian", "offset_buckets", "for_each_segment", "replay_pieces", "for_each_crossing", "jacobian",
@@ -102,13 +103,13 @@ class Grid:
                                      tables.origin, tables.cell_size, tables.shape,
                                      tables.continuation) if bucketed and periodic else None
         return cls(
-            segments=_owned(mi.Float, tables.segments.ravel()),
-            references=_owned(mi.UInt32, tables.references),
-            offsets=_owned(mi.Float, tables.offsets),
-            scan_frames=_owned(mi.Float, scan_frames.ravel()),
-            cell_start=_owned(mi.UInt32, tables.cell_start),
-            cell_bucket=_owned(mi.UInt32, cell_bucket),
-            bucket_start=_owned(mi.UInt32, bucket_start),
+            segments=aligned_array(mi.Float, tables.segments.ravel()),
+            references=aligned_array(mi.UInt32, tables.references),
+            offsets=aligned_array(mi.Float, tables.offsets),
+            scan_frames=aligned_array(mi.Float, scan_frames.ravel()),
+            cell_start=aligned_array(mi.UInt32, tables.cell_start),
+            cell_bucket=aligned_array(mi.UInt32, cell_bucket),
+            bucket_start=aligned_array(mi.UInt32, bucket_start),
             origin_u=dr.opaque(mi.Float, tables.origin[0]),
             origin_v=dr.opaque(mi.Float, tables.origin[1]),
             inverse_cell_size=dr.opaque(mi.Float, 1.0 / tables.cell_size),
@@ -116,16 +117,16 @@ class Grid:
             offset_padding=dr.opaque(mi.Float, OFFSET_PADDING + rounding),
             cells_u=dr.opaque(mi.Int32, tables.shape[0]),
             cells_v=dr.opaque(mi.Int32, tables.shape[1]),
-            crossing_start=_owned(mi.UInt32, tables.crossing_start),
-            crossing_partner=_owned(mi.UInt32, tables.crossing_partner),
-            crossing_along=_owned(mi.Float, tables.crossing_along),
+            crossing_start=aligned_array(mi.UInt32, tables.crossing_start),
+            crossing_partner=aligned_array(mi.UInt32, tables.crossing_partner),
+            crossing_along=aligned_array(mi.Float, tables.crossing_along),
             max_width=dr.opaque(mi.Float, float(tables.segments[:tables.piece_count, 6].max(initial=0.0))),
             bucketed=bucketed,
-            family_frames=None if families is None else _owned(mi.Float, families.frames.ravel()),
+            family_frames=None if families is None else aligned_array(mi.Float, families.frames.ravel()),
             cell_size=dr.opaque(mi.Float, tables.cell_size),
             family_count=0 if families is None else families.families,
             kink_count=0 if families is None else families.kinks,
-            continuation=_owned(mi.Float, _relative_continuation(tables).ravel()) if continuation else None)
+            continuation=aligned_array(mi.Float, _relative_continuation(tables).ravel()) if continuation else None)
 
 
 def _relative_continuation(tables: GridTables) -> np.ndarray:
@@ -185,17 +186,6 @@ def offset_buckets(cell_start, offsets, cell_frames, per_bucket: int = BUCKET_RE
     frames[:, 2] = lowest + cell_frames[:, 2]
     frames[:, 3] = scale
     return frames, aligned(cell_bucket[:-1].astype(np.uint32)), aligned(bucket_start.astype(np.uint32))
-
-
-def _owned(kind, array):
-    """A Dr.Jit array of a numpy array, 64-byte aligned.
-
-    On the CPU Dr.Jit maps numpy's memory without copying, and the alignment
-    decides whether it emits packet gathers: the kernels would then differ
-    (and be compiled again) from one scratch set to the next.  An unaligned
-    array is copied into an aligned buffer first (the tables come aligned).
-    """
-    return kind(aligned(array))
 
 
 @dataclass

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["cell_references", "sorted_references", "doubled_angles", "normals", "offsets_in_cell",
-           "expand", "aligned", "empty_aligned", "CHUNK"]
+           "expand", "aligned", "empty_aligned", "aligned_array", "CHUNK"]
 
 #: Pieces processed at a time.
 CHUNK = 1 << 16
@@ -194,3 +194,14 @@ def aligned(array: np.ndarray) -> np.ndarray:
     result = empty_aligned(array.shape, array.dtype)
     result[...] = array
     return result
+
+
+def aligned_array(kind, array: np.ndarray):
+    """A Dr.Jit array ``kind`` (``mi.Float``, ``mi.UInt32``) of ``array``, 64-byte aligned.
+
+    On the CPU Dr.Jit maps numpy's memory without copying, and the alignment
+    decides whether it emits packet gathers: the kernels would then differ (and
+    miss the kernel cache) from one upload to the next, wherever ``malloc`` put
+    the buffer.  An unaligned array is copied into an aligned buffer first.
+    """
+    return kind(aligned(array))

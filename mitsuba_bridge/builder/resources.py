@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import scratch as scratch_io
-from ..bsdf.references import aligned
+from ..bsdf.references import aligned_array
 from ..colour import srgb_to_linear
 from ..scene import MeshData, ScratchedMetal, Shape, Texture
 from .transform import to_mitsuba
@@ -146,7 +146,7 @@ def mesh_buffer(kind, values, dtype=np.float32):
     then miss Dr.Jit's kernel cache and compile again (the height field's for
     ~45 s on a 2-core machine; docs/bsdf.md, Performance).
     """
-    return kind(aligned(np.ascontiguousarray(values, dtype=dtype).ravel()))
+    return aligned_array(kind, np.ascontiguousarray(values, dtype=dtype).ravel())
 
 
 class ToFolder:
