@@ -59,16 +59,28 @@ def material_textures(name: str):
     return tuple(_regular(mi.load_dict({"type": "spectrum", "filename": p})) for p in paths)
 
 
+def _wavelength_grid_nm(texture):
+    """Every whole nanometre (float32) within the wavelengths ``texture`` tabulates."""
+    import mitsuba as mi
+    import numpy as np
+
+    nodes = np.asarray(mi.traverse(texture)["wavelengths"], dtype=np.float64)
+    return np.arange(np.ceil(nodes.min()), np.floor(nodes.max()) + 0.5, 1.0).astype(np.float32)
+
+
 def _regular(texture):
     """The irregular spectrum ``texture`` resampled every nanometre over its own range."""
     import drjit as dr
     import mitsuba as mi
     import numpy as np
 
-    nodes = np.asarray(mi.traverse(texture)["wavelengths"], dtype=np.float64)
-    grid = np.arange(np.ceil(nodes.min()), np.floor(nodes.max()) + 0.5, 1.0)
+    from .references import aligned_array
+
+    grid = _wavelength_grid_nm(texture)
     si = dr.zeros(mi.SurfaceInteraction3f, len(grid))
-    si.wavelengths = mi.Spectrum(mi.Float(grid.astype(np.float32)))
+    # aligned: Dr.Jit maps numpy's memory, and its alignment would pick another
+    # kernel (a kernel-cache miss) wherever malloc happened to put the grid
+    si.wavelengths = mi.Spectrum(aligned_array(mi.Float, grid))
     values = np.asarray(texture.eval(si))[0]
     return mi.load_dict({"type": "regular", "wavelength_min": float(grid[0]), "wavelength_max": float(grid[-1]),
                          "values": ", ".join(f"{v:.9g}" for v in values)})

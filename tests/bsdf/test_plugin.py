@@ -211,3 +211,30 @@ def test12_a_context_without_a_component_neither_samples_nor_weights_it():
     full = np.asarray(bsdf.eval(mi.BSDFContext(), si, wo))
     np.testing.assert_allclose(np.asarray(bsdf.eval(only_glossy, si, wo)), full - 0.4 * 0.5 / np.pi,
                                rtol=1e-4, atol=1e-6)
+
+
+def test13_material_spectra_compile_the_same_kernels_wherever_numpy_put_the_grid(monkeypatch):
+    """A named material's spectra are resampled by one kernel each at every load; Dr.Jit maps numpy's memory
+    and its alignment changed that kernel (a kernel-cache miss) from one process to the next."""
+    from scratch_iridescence.mitsuba_bridge.bsdf import fresnel
+
+    original = fresnel._wavelength_grid_nm
+
+    def shifted(array, offset_bytes):  # the same values `offset_bytes` past a 64-byte boundary
+        raw = np.zeros(array.nbytes + 128, np.uint8)
+        start = (-raw.ctypes.data) % 64 + offset_bytes
+        view = raw[start:start + array.nbytes].view(array.dtype)
+        view[...] = array
+        return view
+
+    def kernels(offset_bytes):
+        monkeypatch.setattr(fresnel, "_wavelength_grid_nm", lambda texture: shifted(original(texture), offset_bytes))
+        with dr.scoped_set_flag(dr.JitFlag.KernelHistory, True):
+            dr.kernel_history_clear()
+            eta, k = fresnel.material_textures("Al")
+            return [kernel["hash"] for kernel in dr.kernel_history() if kernel["type"] == dr.KernelType.JIT], eta
+
+    aligned, eta = kernels(0)
+    unaligned, eta_unaligned = kernels(4)
+    assert aligned and unaligned == aligned
+    assert str(eta) == str(eta_unaligned)
