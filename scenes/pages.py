@@ -71,6 +71,8 @@ def benchmark_rows(figures, records: dict) -> list[dict]:
                 "peak_mb": record["peak_mb"], "load_s": record["scratch_load_s"],
                 "scratches": record["scratches"], "segments": record["segments"],
                 "build_s": record["build_s"], "total_s": record["total_s"],
+                # the machine reference of the run that rendered this picture (None before they were kept)
+                "reference": record.get("reference"),
             })
     return rows
 
@@ -227,21 +229,27 @@ def load_reference(output: Path) -> dict | None:
     return json.loads(path.read_text()) if path.exists() else None
 
 
-def _reference_lines(reference: dict | None) -> list[str]:
-    if reference is None:
+def _reference_lines(rows: list[dict]) -> list[str]:
+    references = [r["reference"] for r in rows if r["reference"]]
+    runs = list({json.dumps(reference, sort_keys=True): reference for reference in references}.values())
+    if not runs:
         return ["**Machine reference**: not measured (statistics from before `make paper` measured it).", ""]
+    measured = "; ".join(f"{reference['before']:.3g} and {reference['after']:.3g}" for reference in runs)
+    which = ("" if len(runs) == 1 else
+             f" The pictures come from {len(runs)} runs (`--only`); each row is divided by its own run's reference.")
+    unmeasured = len(rows) - len(references)
+    if unmeasured:
+        which += f" {unmeasured} rows come from runs before the reference was kept: no *÷ reference* there."
     return [f"**Machine reference** = Mitsuba's own Cornell box (`mi.cornell_box()`, 256², 64 spp, same variant, "
             f"no add-on code; four renders timed after one that compiles) in a fresh process before the first "
-            f"picture and after the last: "
-            f"{reference['before']:.3g} and {reference['after']:.3g} samples/core-s. The paper's times are fixed, so "
+            f"picture and after the last: {measured} samples/core-s.{which} The paper's times are fixed, so "
             "the ratios against them move with the machine (two development machines of this project differed "
             "by 1.8× running the same code); *÷ reference* (samples/core-s over the reference's mean) compares "
             "across machines and runs.", ""]
 
 
-def _benchmarks(figures, records: dict, reference: dict | None = None) -> str:
+def _benchmarks(figures, records: dict) -> str:
     rows = benchmark_rows(figures, records)
-    unit = reference["samples_per_core_s"] if reference else None
     lines = ["# Benchmarks: the paper's scenes", "",
              f"Measured by `make paper` ({time.strftime('%Y-%m-%d')}) on the development machine: {_machine()}, "
              "shared with other work, so wall times are noisy; CPU times (core-seconds) less so. Every picture "
@@ -257,7 +265,7 @@ def _benchmarks(figures, records: dict, reference: dict | None = None) -> str:
              "**Per wavelength sample** is that ratio divided by 4; the target (issue 12) is at least 2× "
              "the paper per core and per wavelength sample on every scene. Renders beyond the paper (options the "
              "paper does not have) have no paper time.", "",
-             *_reference_lines(reference),
+             *_reference_lines(rows),
              "| picture | pixels × spp | render (wall) | of it passes | samples / core-s | passes only | "
              "÷ reference | paper | paper samples / core-s | ratio | per wavelength sample | peak memory | "
              "scratch set → BSDF | scratches (segments) |",
@@ -269,7 +277,7 @@ def _benchmarks(figures, records: dict, reference: dict | None = None) -> str:
             versus = f"{r['paper_per_core_s']:.3g} | {ratio:.2g}× | {ratio / 4:.2f}×"
         else:
             paper, versus = "—", "— | — | —"
-        relative = f"{r['per_core_s'] / unit:.3f}" if unit else "—"
+        relative = f"{r['per_core_s'] / r['reference']['samples_per_core_s']:.3f}" if r["reference"] else "—"
         lines.append(
             f"| {r['label']} | {r['pixels']} | {r['render_s']:.0f} s | {r['passes_s']:.0f} s | "
             f"{r['per_core_s']:.3g} | {r['passes_per_core_s']:.3g} | "
@@ -300,4 +308,4 @@ def write(docs: Path, records: dict, validation: dict | None, figures, output: P
     docs = Path(docs)
     _copy_pictures(docs, records, validation, output)
     (docs / "gallery.md").write_text(_gallery(figures, records, validation))
-    (docs / "benchmarks.md").write_text(_benchmarks(figures, records, load_reference(output)))
+    (docs / "benchmarks.md").write_text(_benchmarks(figures, records))

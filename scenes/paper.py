@@ -262,8 +262,13 @@ def main(argv=None) -> int:
         before = measure_reference()
         records = run_all(output, args.only, args.scale, args.samples_scale)
         after = measure_reference()
-        (output / "reference.json").write_text(json.dumps(
-            {"before": before, "after": after, "samples_per_core_s": 0.5 * (before + after)}, indent=1))
+        reference = {"before": before, "after": after, "samples_per_core_s": 0.5 * (before + after)}
+        (output / "reference.json").write_text(json.dumps(reference, indent=1))
+        # Each picture keeps its own run's reference: a later `--only` run measures another one, which
+        # must not divide the pictures it did not render.
+        for record in records:
+            record["reference"] = reference
+            (output / f"{record['name']}.json").write_text(json.dumps(record, indent=1))
     validation = None
     if not (args.no_validation or args.pages_only):
         from ..mitsuba_bridge import validation as numerics

@@ -215,3 +215,13 @@ def test10_paper_runner_builds_renders_and_writes_the_pages(tmp_path):
     relative = row["per_core_s"] / reference["samples_per_core_s"]
     assert f"| {row['passes_per_core_s']:.3g} | {relative:.3f} |" in benchmarks
     assert f"{reference['before']:.3g} and {reference['after']:.3g} samples/core-s" in benchmarks
+    assert record["reference"] == reference
+    # A later `--only` run measures its own reference; it divides only the pictures that run rendered.
+    earlier = {"before": 1.0e6, "after": 1.2e6, "samples_per_core_s": 1.1e6}
+    records["fig09_grating-incoherent"]["reference"] = earlier
+    mixed = pages._benchmarks(paper.figures(["fig09_grating"]), records)
+    (incoherent,) = [r for r in pages.benchmark_rows(paper.figures(["fig09_grating"]), records)
+                     if r["name"] == "fig09_grating-incoherent"]
+    assert f"| {incoherent['passes_per_core_s']:.3g} | {incoherent['per_core_s'] / 1.1e6:.3f} |" in mixed
+    assert f"| {row['passes_per_core_s']:.3g} | {relative:.3f} |" in mixed
+    assert "from 2 runs" in mixed and "1e+06 and 1.2e+06" in mixed
