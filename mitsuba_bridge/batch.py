@@ -142,6 +142,8 @@ def render_command(args) -> int:
             write_image(output, progress.image)
     except (OSError, RuntimeError) as error:
         raise CommandError(f"cannot write {output}: {one_line(error)} (any previous file is unchanged)") from None
+    if progress.traced_note:
+        print(progress.traced_note, file=sys.stderr)
     print(f"wrote {output} ({progress.seconds:.1f} s of rendering)")
     return 0
 

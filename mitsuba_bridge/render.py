@@ -87,6 +87,11 @@ def render_whole(scene, **arguments):
     return image
 
 
+#: How :attr:`Progress.traced_note` begins (``make paper`` finds it in a render's output by it).
+TRACED_NOTE_PREFIX = "Mitsuba Scratch: passes traced, not replayed"
+TRACED_REASON_CHARS = 300  #: Dr.Jit's recording errors name every variable involved: the start says what failed
+
+
 @dataclass(frozen=True)
 class Progress:
     """State after one chunk.
@@ -108,6 +113,10 @@ class Progress:
     #: An image that is already the one to show (the interactive session's running mean or preview);
     #: when set, ``image`` is this array and the sums are not used.
     shown: np.ndarray | None = None
+    #: Why this render's passes are traced again for every chunk instead of replayed from a recording
+    #: (:class:`~mitsuba_bridge.freezing.FrozenRender` gave up: a plugin Dr.Jit cannot record); None
+    #: while they replay or when freezing was not asked for.  Same image either way, only slower.
+    traced_because: str | None = None
 
     @property
     def fraction(self) -> float:
@@ -116,6 +125,15 @@ class Progress:
     @property
     def finished(self) -> bool:
         return self.spp_done >= self.spp_total
+
+    @property
+    def traced_note(self) -> str | None:
+        """One line for a console or log when the passes were traced (:attr:`traced_because`), else None."""
+        if self.traced_because is None:
+            return None
+        reason = " ".join(self.traced_because.split())
+        reason = reason if len(reason) <= TRACED_REASON_CHARS else reason[:TRACED_REASON_CHARS - 1] + "…"
+        return f"{TRACED_NOTE_PREFIX} (same image, slower): {reason}"
 
     @functools.cached_property
     def image(self) -> np.ndarray:
@@ -156,7 +174,8 @@ def render_chunks(scene, chunks: Iterable[Chunk], spp_total: int, *, freeze: boo
     size with ``dr.freeze`` and replay it for the others
     (:class:`~mitsuba_bridge.freezing.FrozenRender`: the same kernels, so the
     same image bit for bit, without tracing the integrator and the Python BSDF
-    again for every chunk); a scene that cannot be recorded renders traced.
+    again for every chunk); a scene that cannot be recorded renders traced, and
+    every later :attr:`Progress.traced_because` says why.
     """
     from .freezing import FrozenRender
 
@@ -173,7 +192,8 @@ def render_chunks(scene, chunks: Iterable[Chunk], spp_total: int, *, freeze: boo
         # float32 × an integer below 2**29 is exact in float64: the only rounding is in the fixed-order sum.
         sums.add(image.astype(np.float64) * chunk.spp)
         done += chunk.spp
-        yield Progress(number, done, spp_total, time.perf_counter() - start, chunk, sums, sums.partials())
+        yield Progress(number, done, spp_total, time.perf_counter() - start, chunk, sums, sums.partials(),
+                       traced_because=passes.failure)
 
 
 def render_passes(scene, spp: int, *, seed: int = 0) -> Iterator[Progress]:

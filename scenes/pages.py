@@ -73,6 +73,7 @@ def benchmark_rows(figures, records: dict) -> list[dict]:
                 "build_s": record["build_s"], "total_s": record["total_s"],
                 # the machine reference of the run that rendered this picture (None before they were kept)
                 "reference": record.get("reference"),
+                "traced": record.get("traced"),  # the engine's note when its passes could not be frozen
             })
     return rows
 
@@ -283,8 +284,13 @@ def _benchmarks(figures, records: dict) -> str:
             f"{r['per_core_s']:.3g} | {r['passes_per_core_s']:.3g} | "
             f"{relative} | {paper} | {versus} | {r['peak_mb']:,.0f} MB | "
             f"{r['load_s']:.2f} s | {r['scratches']:,} ({r['segments']:,}) |")
-    lines += ["",
-              "* **Peak memory** is the render process's maximum resident set (`ru_maxrss`): Blender (bpy), "
+    traced = [r for r in rows if r["traced"]]
+    lines += [""]
+    if traced:
+        lines.append("* **Traced passes**: " + "; ".join(f"{r['label']}: {r['traced']}" for r in traced) + ". "
+                     "These pictures re-traced the integrator and the BSDF for every chunk instead of replaying "
+                     "one recording ([bsdf.md](bsdf.md), Performance): the same image, a slower render.")
+    lines += ["* **Peak memory** is the render process's maximum resident set (`ru_maxrss`): Blender (bpy), "
               "Mitsuba and Dr.Jit themselves take about 400 MB of it, the rest is the scene, the scratch tables "
               "and the image.",
               "* **Scratch set → BSDF**: decoding the object's stored scratch file and `mi.load_dict` of the "

@@ -33,6 +33,8 @@ import sys
 import time
 from pathlib import Path
 
+from ..mitsuba_bridge.render import TRACED_NOTE_PREFIX
+
 __all__ = ["FIGURE_MODULES", "figures", "main"]
 
 #: The figure modules, in the gallery's order.
@@ -169,11 +171,14 @@ def _run_worker(args: list[str], label: str) -> dict:
     command = [sys.executable, "-m", f"{_PACKAGE}.paper", *args]
     process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                                env={**os.environ, "PYTHONUNBUFFERED": "1"})
-    result, last_shown, tail, passes_s = None, 0.0, [], None
+    result, last_shown, tail, passes_s, traced = None, 0.0, [], None, None
     for line in process.stdout:
         tail = (tail + [line])[-40:]
         if line.startswith("RESULT "):
             result = json.loads(line[len("RESULT "):])
+        elif line.startswith(TRACED_NOTE_PREFIX):  # the engine could not freeze the passes (speed only)
+            traced = line.strip()
+            print(f"    {label}: {traced}", flush=True)
         elif line.startswith("Fra:"):
             # The engine's progress: "Fra:1 | Mitsuba Scratch | Sample 64/64 | 62.5 s" (time since the first pass).
             passes_s = float(line.rsplit("|", 1)[-1].strip().rstrip("s"))
@@ -185,6 +190,8 @@ def _run_worker(args: list[str], label: str) -> dict:
         raise RuntimeError(f"{label}: worker failed ({' '.join(command)})")
     if passes_s is not None:
         result["passes_s"] = passes_s
+    if traced is not None:
+        result["traced"] = traced
     return result
 
 

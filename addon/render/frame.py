@@ -116,5 +116,7 @@ def render_frame(engine, depsgraph) -> None:
         _fail(engine, f"Mitsuba Scratch: rendering failed: {type(error).__name__}: {error}")
     finally:
         engine.end_result(result)
+    if progress is not None and progress.traced_note:
+        print(progress.traced_note, flush=True)  # speed only, for the console (as Cycles' device notes)
     if cancelled:
         engine.report({"INFO"}, "Mitsuba Scratch: render cancelled; the image holds the samples done so far")

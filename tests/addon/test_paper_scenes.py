@@ -225,3 +225,9 @@ def test10_paper_runner_builds_renders_and_writes_the_pages(tmp_path):
     assert f"| {incoherent['passes_per_core_s']:.3g} | {incoherent['per_core_s'] / 1.1e6:.3f} |" in mixed
     assert f"| {row['passes_per_core_s']:.3g} | {relative:.3f} |" in mixed
     assert "from 2 runs" in mixed and "1e+06 and 1.2e+06" in mixed
+    # The grating's passes replay one recording; a picture whose engine said otherwise is named on the page.
+    assert "traced" not in record and "Traced passes" not in benchmarks
+    records["fig09_grating-incoherent"]["traced"] = "Mitsuba Scratch: passes traced, not replayed (same image, " \
+                                                    "slower): record(): simulated"
+    assert "**Traced passes**: Fig. 9 incoherent: Mitsuba Scratch: passes traced" in \
+        pages._benchmarks(paper.figures(["fig09_grating"]), records)

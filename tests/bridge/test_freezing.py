@@ -94,6 +94,22 @@ def test04_a_plugin_that_cannot_be_recorded_falls_back_to_traced_passes_never_to
     assert np.allclose(second[..., :3], 0.5 * first[..., :3], rtol=1e-5, atol=1e-7)
 
 
+def test04b_a_render_that_fell_back_says_why_on_every_later_progress(variant, lit_scene):
+    """The fallback costs only speed, so the image says nothing of it: the progress carries the reason for
+    the CLI, the engine's console and ``make paper``'s table."""
+    from scratch_iridescence.mitsuba_bridge import render
+    from scratch_iridescence.mitsuba_bridge.schedule import sample_schedule
+
+    chunks = sample_schedule(3, 16, 0)
+    traced = list(render.render_chunks(_hidden_albedo_scene(), chunks, 3))
+    assert all("record()" in progress.traced_because for progress in traced)
+    note = traced[-1].traced_note
+    assert note.startswith(render.TRACED_NOTE_PREFIX) and "\n" not in note
+    assert len(note) <= len(render.TRACED_NOTE_PREFIX) + 30 + render.TRACED_REASON_CHARS
+    frozen = list(render.render_chunks(lit_scene, chunks, 3))
+    assert all(progress.traced_because is None and progress.traced_note is None for progress in frozen)
+
+
 def test_a_ctrl_c_while_recording_is_handed_on_and_keeps_freezing_enabled(variant):
     """Dr.Jit wraps the KeyboardInterrupt in a RuntimeError, like a failed recording: it must not be taken for
     one (which would switch freezing off for the session), but end the pass as an interruption."""
