@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import ScratchUserError
-from .references import aligned
+from .references import aligned, expand
 
 __all__ = ["find_crossings", "extend_crossings", "crossing_tables", "pairs_of", "MAX_PAIRS", "MIN_SINE", "PAIR_BUDGET",
            "TooManyCrossings"]
@@ -156,12 +156,12 @@ def _pairs_crossing_in(cells, starts, sizes, references, a, e, direction, new_pi
     pairs, listed = [np.zeros((0, 2), dtype=np.int64)], 0
     for group in _cell_groups(cells, sizes):
         first, second = _pairs_in_cells(group, starts, sizes, references)
-        keep = first != second
         if new_piece is not None:
-            keep &= new_piece[first] | new_piece[second]
-        first, second = first[keep], second[keep]
+            keep = new_piece[first] | new_piece[second]
+            first, second = first[keep], second[keep]
         found = _crossing(a, e, direction, first, second)
-        pairs.append(np.stack([np.minimum(first, second), np.maximum(first, second)], axis=1)[found])
+        first, second = first[found], second[found]  # (about a quarter of the candidates on a random plate)
+        pairs.append(np.stack([np.minimum(first, second), np.maximum(first, second)], axis=1))
         listed += len(pairs[-1])
         if listed > max_pairs:  # (counted with repeats: compact, then judge)
             pairs = [_unique_pairs(np.concatenate(pairs), len(a))]
@@ -197,8 +197,8 @@ def _references_of(group, starts, sizes):
 
 def _cell_groups(cells, sizes):
     """Split ``cells`` into groups whose candidate pairs fit in PAIR_BUDGET."""
-    work = sizes[cells].astype(np.int64) ** 2
-    total = np.cumsum(work)
+    k = sizes[cells].astype(np.int64)
+    total = np.cumsum(k * (k - 1) // 2)
     start = 0
     while start < len(cells):
         base = total[start - 1] if start else 0
@@ -208,16 +208,15 @@ def _cell_groups(cells, sizes):
 
 
 def _pairs_in_cells(cells, starts, sizes, references):
-    """All ordered pairs (i, j), i before j, of the references of each cell in ``cells``."""
+    """All pairs (i, j), i listed before j, of the references of each cell in ``cells`` (a cell lists a
+    piece at most once, so i ≠ j): row by row, each reference with those after it in its cell."""
     k = sizes[cells]
-    per_cell = k * k
-    owner = np.repeat(np.arange(len(cells)), per_cell)
-    flat = np.arange(len(owner)) - np.repeat(np.cumsum(per_cell) - per_cell, per_cell)
-    row, col = np.divmod(flat, k[owner])
-    upper = row < col
-    owner, row, col = owner[upper], row[upper], col[upper]
-    base = starts[cells][owner]
-    return references[base + row].astype(np.int64), references[base + col].astype(np.int64)
+    # every listed reference of the cells: its position in ``references`` and how many follow it in its cell
+    _, position = expand(starts[cells], k)
+    after = np.repeat(np.cumsum(k), k) - np.arange(1, len(position) + 1)
+    row, step = expand(np.zeros(len(position), dtype=np.int64), after)
+    position = position[row]
+    return references[position].astype(np.int64), references[position + 1 + step].astype(np.int64)
 
 
 def _parameters(a, e, first, second):
@@ -229,18 +228,28 @@ def _parameters(a, e, first, second):
 
 
 def _crossing(a, e, direction, first, second):
-    """Whether the centre lines of the pieces cross inside both (parameters in [0, 1)), not nearly parallel."""
-    cross = e[first, 0] * e[second, 1] - e[first, 1] * e[second, 0]
-    sine = direction[first, 0] * direction[second, 1] - direction[first, 1] * direction[second, 0]
-    usable = np.abs(sine) >= MIN_SINE
-    safe = np.where(usable, cross, 1.0)
-    gap = a[second] - a[first]
-    t_first = (gap[:, 0] * e[second, 1] - gap[:, 1] * e[second, 0]) / safe
-    t_second = (gap[:, 0] * e[first, 1] - gap[:, 1] * e[first, 0]) / safe
-    inside = (t_first >= 0.0) & (t_first < 1.0) & (t_second >= 0.0) & (t_second < 1.0)
+    """Whether the centre lines of the pieces cross inside both (parameters in [0, 1)), not nearly parallel.
+
+    In two stages: the crossing's parameter along ``first`` rules out most candidates (about 9 in 10 on
+    the Fig. 1 table), so the rest of the test gathers and computes for the others only.  Row gathers
+    through ``np.take``: 3-4x faster than fancy indexing's ``e[first]`` (numpy 1.26).
+    """
+    e_first, e_second = np.take(e, first, axis=0), np.take(e, second, axis=0)
+    gap = np.take(a, second, axis=0) - np.take(a, first, axis=0)
+    cross = e_first[:, 0] * e_second[:, 1] - e_first[:, 1] * e_second[:, 0]
+    safe = np.where(cross != 0.0, cross, 1.0)  # (parallel pieces fail the sine test below)
+    t_first = (gap[:, 0] * e_second[:, 1] - gap[:, 1] * e_second[:, 0]) / safe
+    candidate = np.flatnonzero((t_first >= 0.0) & (t_first < 1.0) & (cross != 0.0))
+    e_first, gap, t_first, safe = e_first[candidate], gap[candidate], t_first[candidate], safe[candidate]
+    d_first = np.take(direction, first[candidate], axis=0)
+    d_second = np.take(direction, second[candidate], axis=0)
+    sine = d_first[:, 0] * d_second[:, 1] - d_first[:, 1] * d_second[:, 0]
+    t_second = (gap[:, 0] * e_first[:, 1] - gap[:, 1] * e_first[:, 0]) / safe
     # consecutive pieces of a polyline meet at an end of both (up to rounding): not a crossing
     shared_vertex = _near_end(t_first) & _near_end(t_second)
-    return usable & inside & ~shared_vertex
+    found = np.zeros(len(first), dtype=bool)
+    found[candidate] = (np.abs(sine) >= MIN_SINE) & (t_second >= 0.0) & (t_second < 1.0) & ~shared_vertex
+    return found
 
 
 def _near_end(t, tolerance=1e-9):
