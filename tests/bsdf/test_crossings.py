@@ -66,6 +66,29 @@ def test02_polyline_vertices_and_parallel_tracks_give_no_pair():
     assert tables.build_tables(probe.scratch_set(sliver[:1] + v_groove[1:])).crossing_count == 0
 
 
+def test02c_the_grid_search_finds_every_crossing_pair_of_all_pieces_and_no_other():
+    """The candidates come from the lookup grid's cells (each cell's pairs once); against testing every
+    pair of pieces (crossing inside both, |sin θ| ≥ MIN_SINE, not neighbours on a polyline)."""
+    rng = np.random.default_rng(12)
+    points = rng.uniform(0.3, 0.7, (40, 3, 2))  # polylines of two pieces, cut further at 1/64 UV
+    scratches = ScratchSet.from_polylines(list(points), width=np.full(40, 1e-6), depth=np.full(40, 2e-7))
+    t, a, b = tables.build_sorted(scratches, 0.0, True)
+    listed = {tuple(pair) for pair in crossings.pairs_of(t.crossing_start, t.crossing_partner)}
+    e = b - a
+    expected = set()
+    for i in range(len(a)):
+        for j in range(i + 1, len(a)):
+            cross = e[i, 0] * e[j, 1] - e[i, 1] * e[j, 0]
+            if abs(cross) < crossings.MIN_SINE * np.hypot(*e[i]) * np.hypot(*e[j]):
+                continue
+            gap = a[j] - a[i]
+            s_i, s_j = (gap[0] * e[j, 1] - gap[1] * e[j, 0]) / cross, (gap[0] * e[i, 1] - gap[1] * e[i, 0]) / cross
+            ends = min(s_i, 1 - s_i) < 1e-9 and min(s_j, 1 - s_j) < 1e-9
+            if 0 <= s_i < 1 and 0 <= s_j < 1 and not ends:
+                expected.add((i, j))
+    assert len(expected) > 200 and listed == expected
+
+
 def test02b_a_set_crossing_itself_too_often_is_refused_with_one_clear_error(monkeypatch):
     """Beyond crossings.MAX_PAIRS (lowered here from 5e7 to 3) the build stops with TooManyCrossings instead of
     exhausting the memory; through the plugin the message reaches the user."""
