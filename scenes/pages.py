@@ -289,7 +289,7 @@ def _benchmarks(figures, records: dict) -> str:
     if traced:
         lines.append("* **Traced passes**: " + "; ".join(f"{r['label']}: {r['traced']}" for r in traced) + ". "
                      "These pictures re-traced the integrator and the BSDF for every chunk instead of replaying "
-                     "one recording ([bsdf.md](bsdf.md), Performance): the same image, a slower render.")
+                     "one recording ([rendering.md](rendering.md), Render): the same image, a slower render.")
     lines += ["* **Peak memory** is the render process's maximum resident set (`ru_maxrss`): Blender (bpy), "
               "Mitsuba and Dr.Jit themselves take about 400 MB of it, the rest is the scene, the scratch tables "
               "and the image.",
