@@ -137,3 +137,23 @@ def test09_in_memory_values_name_the_bad_field(plate):
         memory.from_values(dict(values, scratch_width=-values["scratch_width"]))
     with pytest.raises(ScratchFormatError, match="field 'offsets'.*dtype"):
         memory.from_values(dict(values, scratch_offsets=values["scratch_offsets"].astype(np.float64)))
+
+
+def test_each_cells_references_are_sorted_by_offset_as_a_float_comparison_orders_them():
+    """The in-place sort by one uint64 key per reference (cell, then the offset's bits made
+    order-preserving) against ``np.lexsort``: negative offsets, -0.0 beside 0.0, ties, cells of one and of
+    many references, blocks that end mid-way."""
+    from scratch_iridescence.mitsuba_bridge.bsdf import references as refs
+
+    rng = np.random.default_rng(5)
+    counts = rng.integers(0, 9, 400)
+    cell_start = np.r_[0, np.cumsum(counts)].astype(np.uint32)
+    offsets = rng.choice(np.array([-2.5, -1e-30, -0.0, 0.0, 1e-30, 0.75, 3.0], np.float32), cell_start[-1])
+    offsets[::7] = rng.normal(size=len(offsets[::7])).astype(np.float32)
+    references = np.arange(len(offsets), dtype=np.uint32)
+    cell = np.repeat(np.arange(len(counts)), counts)
+    expected = np.lexsort((offsets, cell))  # stable: equal offsets (-0.0 == 0.0) keep their order
+    sorted_references, sorted_offsets = references.copy(), offsets.copy()
+    refs._sort_cells_by_offset(sorted_references, sorted_offsets, cell_start, block=97)
+    assert np.array_equal(sorted_references, references[expected])
+    assert np.array_equal(sorted_offsets.view(np.uint32), offsets[expected].view(np.uint32))
