@@ -184,22 +184,24 @@ def _chunk_families(chunk, starts, counts, references, segments, origin, h, nu, 
     np.cumsum(n_refs[:-1], out=first[1:])
     index = starts[chunk][local] + (np.arange(len(local)) - first[local])
     piece = references[index].astype(np.int64)
-    rows = segments[piece]
+    # rows gathered with np.take: several times faster than fancy indexing (numpy 1.26)
+    rows = np.take(segments, piece, axis=0)
     corner = np.stack([chunk % nu, chunk // nu], axis=1).astype(np.float64) * h + origin
-    a = (rows[:, 0:2].astype(np.float64) - corner[local] + rows[:, 2:4]) / h  # cells, from the cell's corner
+    a = (rows[:, 0:2].astype(np.float64) - np.take(corner, local, axis=0) + rows[:, 2:4]) / h  # cells, from the corner
     e = rows[:, 4:6].astype(np.float64) / h
     length = np.hypot(e[:, 0], e[:, 1])
     usable = length > 0
     t = e / np.where(usable, length, 1.0)[:, None]
     width, depth = rows[:, 6], rows[:, 7]
-    runs_on = continuation[piece].astype(np.float64) / h  # cells: straight on before the start, after the end
+    runs_on = np.take(continuation, piece, axis=0).astype(np.float64) / h  # cells: straight on before the start, after the end
     del rows, index
 
     # ---- family A: parallel to the cell's first piece; B: to its first piece not in A; others spoil the cell
     def cross(t_ref):
-        return np.abs(t[:, 0] * t_ref[local, 1] - t[:, 1] * t_ref[local, 0])
+        t_ref = np.take(t_ref, local, axis=0)
+        return np.abs(t[:, 0] * t_ref[:, 1] - t[:, 1] * t_ref[:, 0])
 
-    t_a = t[first]
+    t_a = np.take(t, first, axis=0)
     in_a = cross(t_a) < PARALLEL_SIN
     not_a = np.where(~in_a, np.arange(len(local)), len(local))
     first_b = np.minimum.reduceat(not_a, first)
@@ -234,15 +236,16 @@ def _family(slot, member, t_f, other, local, a, e, t, runs_on, width, depth, chu
     if len(idx) == 0:
         return
     c = local[idx]
-    tx, ty = t_f[c, 0], t_f[c, 1]  # normal n_f = (-t_y, t_x)
+    t_c = np.take(t_f, c, axis=0)  # (rows by np.take: see _chunk_families)
+    tx, ty = t_c[:, 0], t_c[:, 1]  # normal n_f = (-t_y, t_x)
     # offset of each piece's own line where it passes the cell's centre (pieces of one straight track agree
     # there exactly; their start points would differ by their direction's float32 rounding times the length)
-    start = a[idx]
-    along_to_centre = _project(0.5 - start, t[idx, 0], t[idx, 1])
-    offset = _project(start + along_to_centre[:, None] * t[idx], -ty, tx)
-    del start, along_to_centre
-    s0 = _project(a[idx], tx, ty)
-    s1 = s0 + _project(e[idx], tx, ty)
+    start, direction = np.take(a, idx, axis=0), np.take(t, idx, axis=0)
+    along_to_centre = _project(0.5 - start, direction[:, 0], direction[:, 1])
+    offset = _project(start + along_to_centre[:, None] * direction, -ty, tx)
+    s0 = _project(start, tx, ty)
+    s1 = s0 + _project(np.take(e, idx, axis=0), tx, ty)
+    del start, direction, along_to_centre
     lo, hi = np.minimum(s0, s1), np.maximum(s0, s1)
     forward = s1 >= s0
     before, after = runs_on[idx, 0], runs_on[idx, 1]
@@ -291,11 +294,12 @@ def _family(slot, member, t_f, other, local, a, e, t, runs_on, width, depth, chu
     jdx = np.flatnonzero(other)  # grouped by cell, as the references
     if len(jdx):
         oc = local[jdx]
-        tx, ty = t_f[oc, 0], t_f[oc, 1]
-        q0 = _project(a[jdx], -ty, tx)
-        q1 = q0 + _project(e[jdx], -ty, tx)
-        r0 = _project(a[jdx], tx, ty)
-        r1 = r0 + _project(e[jdx], tx, ty)
+        t_o, a_o, e_o = (np.take(x, i, axis=0) for x, i in ((t_f, oc), (a, jdx), (e, jdx)))
+        tx, ty = t_o[:, 0], t_o[:, 1]
+        q0 = _project(a_o, -ty, tx)
+        q1 = q0 + _project(e_o, -ty, tx)
+        r0 = _project(a_o, tx, ty)
+        r1 = r0 + _project(e_o, tx, ty)
         r_lo, r_hi = np.minimum(r0, r1), np.maximum(r0, r1)
         beside = (np.minimum(q0, q1) > o_last[oc]) | (np.maximum(q0, q1) < o_first[oc])
         middle = 0.5 * (s_lo[oc] + s_hi[oc])
