@@ -85,7 +85,8 @@ def render_frame(engine, depsgraph) -> None:
                                f"scene gives {width} x {height}")
         engine.update_stats("", f"Mitsuba | Loading {len(description.shapes)} shapes "
                                 f"({description.triangle_count:,} triangles)")
-        mi_scene = builder.load_scene(description, settings)
+        # Persistent Data (Cycles' option, Performance panel): scratch tables kept between final renders
+        mi_scene = builder.load_scene(description, settings, keep_tables=scene.render.use_persistent_data)
         combined = result.layers[0].passes["Combined"]
         refresh = passes.Refresh(REFRESH_SECONDS)
         for progress in passes.render_passes(mi_scene, settings.spp, seed=settings.seed):

@@ -14,7 +14,8 @@ import bpy
 
 from .engine import ENGINE_ID
 
-__all__ = ["SCRATCH_PT_render_sampling", "SCRATCH_PT_render_film", "SCRATCH_PT_render_device", "compatible_panels"]
+__all__ = ["SCRATCH_PT_render_sampling", "SCRATCH_PT_render_film", "SCRATCH_PT_render_device",
+           "SCRATCH_PT_render_performance", "compatible_panels"]
 
 # Panels EEVEE shows whose settings mean nothing to this engine.
 _SKIP_WORDS = ("eevee", "lightprobe", "freestyle", "gpencil", "grease_pencil", "shadow_terminator", "passes",
@@ -96,7 +97,20 @@ def mitsuba_version():
         return "(version unknown)"
 
 
-_CLASSES = (SCRATCH_PT_render_sampling, SCRATCH_PT_render_film, SCRATCH_PT_render_device)
+class SCRATCH_PT_render_performance(_RenderPanel, bpy.types.Panel):
+    bl_label = "Performance"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        column = layout.column(heading="Final Render")
+        # Blender's own setting, as Cycles shows it: here it keeps the scratch tables between F12 renders
+        column.prop(context.scene.render, "use_persistent_data", text="Persistent Data")
+
+
+_CLASSES = (SCRATCH_PT_render_sampling, SCRATCH_PT_render_film, SCRATCH_PT_render_device,
+            SCRATCH_PT_render_performance)
 _opened: list = []
 
 

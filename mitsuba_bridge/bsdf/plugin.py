@@ -9,7 +9,7 @@ import drjit as dr
 import mitsuba as mi
 
 from .. import scratch
-from . import memory, parameters
+from . import memory, parameters, persistent
 from .fresnel import material_textures
 from .lookup import Grid
 from .model import Model
@@ -230,13 +230,21 @@ def _make_class() -> type:
             self._set_scratches(scratches)
 
         def _set_scratches(self, scratches):
-            # a set that only appends scratches (a stroke) extends the previous tables (.incremental)
-            self.table_cache = update_tables(getattr(self, "table_cache", None), scratches, self.cell_size,
-                                             crossings=self._height_field)
+            periodic, continuation = Model.sums_families(self.coherent, self.depth_phase), not self.coherent
+            previous = getattr(self, "table_cache", None)
+
+            def build():
+                # a set that only appends scratches (a stroke) extends the previous tables (.incremental)
+                cache = update_tables(previous, scratches, self.cell_size, crossings=self._height_field)
+                return cache, Grid.upload(cache.tables, periodic=periodic, continuation=continuation)
+
+            if previous is None:  # a new BSDF: a final render with Persistent Data may find its tables kept
+                options = (self.cell_size, self._height_field, periodic, continuation)
+                self.table_cache, self.grid = persistent.reuse_or_build(scratches, options, build)
+            else:
+                self.table_cache, self.grid = build()
             self.tables = self.table_cache.tables
             self.scratch_count = scratches.count
-            self.grid = Grid.upload(self.tables, periodic=Model.sums_families(self.coherent, self.depth_phase),
-                                    continuation=not self.coherent)
             self._rebuild_model()
 
         @property

@@ -86,11 +86,22 @@ def _has_see_through_surfaces(description: SceneDescription) -> bool:
                for part in walk_materials(material))
 
 
-def load_scene(description: SceneDescription, settings: RenderSettings, *, instancing: bool = True):
-    """The scene loaded in memory (no files written)."""
+def load_scene(description: SceneDescription, settings: RenderSettings, *, instancing: bool = True,
+               keep_tables: bool | None = None):
+    """The scene loaded in memory (no files written).
+
+    ``keep_tables`` (a final render's *Persistent Data*): True reuses the scratch tables kept from the
+    previous final render where the scratch set is unchanged and keeps this scene's; False forgets any
+    kept tables; None (the viewport, exports, tests) leaves them alone (:mod:`..bsdf.persistent`).
+    """
     import mitsuba as mi
 
-    return mi.load_dict(scene_dict(description, settings, InMemory(), instancing=instancing))
+    from ..bsdf.persistent import kept_between_renders
+
+    if keep_tables is None:
+        return mi.load_dict(scene_dict(description, settings, InMemory(), instancing=instancing))
+    with kept_between_renders(keep_tables):
+        return mi.load_dict(scene_dict(description, settings, InMemory(), instancing=instancing))
 
 
 def _unique(names: set, name: str) -> str:

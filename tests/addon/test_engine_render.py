@@ -295,13 +295,36 @@ def test_cancelled_render_leaves_no_temporary_files(tmp_path):
     assert not any(p.is_file() for p in temporary.rglob("*"))  # and nothing left after it quit
 
 
+def test_persistent_data_keeps_the_scratch_tables_between_final_renders(lit, tmp_path):
+    """Blender's *Persistent Data* (render settings, Performance): a second F12 of an unchanged scratched
+    object takes the kept tables, the same image bit for bit; switched off, nothing stays kept."""
+    from scratch_iridescence.addon import storage
+    from scratch_iridescence.mitsuba_bridge import scratch
+    from scratch_iridescence.mitsuba_bridge.bsdf import persistent
+
+    plane = next(obj for obj in lit.objects if obj.type == "MESH")
+    storage.write_scratches(plane, scratch.random_scratches(50, seed=5, region=((0.1, 0.1), (0.9, 0.9))))
+    persistent.forget()
+    before = persistent.statistics()
+    lit.render.use_persistent_data = True
+    first = render_to(lit, tmp_path / "first.exr")
+    second = render_to(lit, tmp_path / "second.exr")
+    after = persistent.statistics()
+    assert (after["kept"], after["built"] - before["built"], after["reused"] - before["reused"]) == (1, 1, 1)
+    assert np.array_equal(first, second)
+    lit.render.use_persistent_data = False
+    third = render_to(lit, tmp_path / "third.exr")
+    assert persistent.statistics()["kept"] == 0 and np.array_equal(first, third)
+
+
 def test_blenders_own_panels_open_to_the_engine_except_eevee_settings(addon):
     for name in ("RENDER_PT_format", "RENDER_PT_output", "DATA_PT_lens", "DATA_PT_camera", "DATA_PT_EEVEE_light",
                  "EEVEE_MATERIAL_PT_surface", "EEVEE_WORLD_PT_surface", "RENDER_PT_color_management"):
         assert "MITSUBA_SCRATCH" in getattr(bpy.types, name).COMPAT_ENGINES, name
     for name in ("RENDER_PT_eevee_sampling", "RENDER_PT_eevee_raytracing", "DATA_PT_EEVEE_light_shadow"):
         assert "MITSUBA_SCRATCH" not in getattr(bpy.types, name).COMPAT_ENGINES, name
-    for name in ("SCRATCH_PT_render_sampling", "SCRATCH_PT_render_film", "SCRATCH_PT_render_device"):
+    for name in ("SCRATCH_PT_render_sampling", "SCRATCH_PT_render_film", "SCRATCH_PT_render_device",
+                 "SCRATCH_PT_render_performance"):
         assert getattr(bpy.types, name).COMPAT_ENGINES == {"MITSUBA_SCRATCH"}
 
 

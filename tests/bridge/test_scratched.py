@@ -81,3 +81,33 @@ def test_unscratched_metal_needs_no_scratch_file(variant, tmp_path):
     export.export_folder(plate_scene(metal(scratch.ScratchSet.empty())), S.RenderSettings(), tmp_path / "out")
     assert not (tmp_path / "out" / "scratches").exists()
     assert render.render_image(export.load_folder(tmp_path / "out"), 4).shape == (32, 48, 4)
+
+
+def test_persistent_data_keeps_the_scratch_tables_of_an_unchanged_set_between_final_renders(variant, scratches):
+    """``load_scene(keep_tables=True)`` (Blender's Persistent Data) takes the previous final render's tables
+    where the scratch set and its options are unchanged, builds anew where they changed, forgets what the
+    scene no longer uses, and renders the same image bit for bit; ``False`` forgets everything."""
+    mi = pytest.importorskip("mitsuba")
+    from scratch_iridescence.mitsuba_bridge.bsdf import persistent
+
+    def load(material, keep):
+        scene = builder.load_scene(plate_scene(material), S.RenderSettings(), keep_tables=keep)
+        (shape,) = scene.shapes()
+        return scene, shape.bsdf()
+
+    persistent.forget()
+    reference_scene, reference = load(metal(scratches), None)
+    assert persistent.statistics()["kept"] == 0  # the viewport's and exports' loads keep nothing
+    first_scene, first = load(metal(scratches), True)
+    second_scene, second = load(metal(scratches), True)
+    assert persistent.statistics()["kept"] == 1 and second.grid is first.grid and second.grid is not reference.grid
+    image = np.asarray(mi.render(second_scene, spp=4, seed=3))
+    assert np.array_equal(image, np.asarray(mi.render(reference_scene, spp=4, seed=3)))
+    # another option or one scratch fewer: new tables, and the old ones are no longer kept
+    _, incoherent = load(metal(scratches, coherent=False), True)
+    assert incoherent.grid is not first.grid and persistent.statistics()["kept"] == 1
+    fewer = scratches.select(np.arange(scratches.count) != 1234)
+    _, changed = load(metal(fewer), True)
+    assert changed.scratch_count == scratches.count - 1 and changed.grid is not incoherent.grid
+    load(metal(scratches), False)
+    assert persistent.statistics()["kept"] == 0
