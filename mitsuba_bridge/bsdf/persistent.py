@@ -8,11 +8,12 @@ builder opens it for a final render), a ``scratch_diffraction`` BSDF whose
 scratch set and build options equal a kept one's takes the kept tables and
 their Dr.Jit arrays instead of building them.  The key is a digest of the whole
 set (every array of the :class:`~mitsuba_bridge.scratch.ScratchSet`) and the
-options, so an edited set never meets stale tables.  Sets that the load in
+options (the Mitsuba variant among them), so an edited set never meets stale tables.  Sets that the load in
 progress did not use are forgotten when it ends, and everything is forgotten
 by a load with the option off, so memory holds at most one scene's tables.
 
-numpy and hashlib only; the values kept are whatever the plugin builds.
+numpy and hashlib (Mitsuba only for the active variant's name); the values kept are whatever the
+plugin builds.
 """
 from __future__ import annotations
 
@@ -58,7 +59,7 @@ def reuse_or_build(scratches, options: tuple, build):
     ``build()`` (kept when a persistent load is open)."""
     if _used is None:
         return build()
-    key = _digest(scratches, options)
+    key = _digest(scratches, (_variant(), *options))  # a kept LLVM array cannot serve a CUDA render
     with _lock:
         value = _kept.get(key)
     reused = value is not None
@@ -83,6 +84,12 @@ def forget() -> None:
     """Drop every kept table (their memory goes when no scene uses them any more)."""
     with _lock:
         _kept.clear()
+
+
+def _variant() -> str:
+    import mitsuba as mi
+
+    return mi.variant()
 
 
 def _digest(scratches, options: tuple) -> bytes:

@@ -111,3 +111,19 @@ def test_persistent_data_keeps_the_scratch_tables_of_an_unchanged_set_between_fi
     assert changed.scratch_count == scratches.count - 1 and changed.grid is not incoherent.grid
     load(metal(scratches), False)
     assert persistent.statistics()["kept"] == 0
+
+
+def test_persistent_data_never_hands_tables_to_another_variant(variant, scratches, monkeypatch):
+    """Kept Dr.Jit arrays belong to the variant that built them (an LLVM array cannot serve a CUDA render):
+    the variant is part of the key.  Seen here through the name the key reads (no GPU in CI)."""
+    from scratch_iridescence.mitsuba_bridge.bsdf import persistent
+
+    def grid(name):
+        monkeypatch.setattr(persistent, "_variant", lambda: name)
+        scene = builder.load_scene(plate_scene(metal(scratches)), S.RenderSettings(), keep_tables=True)
+        return scene.shapes()[0].bsdf().grid
+
+    persistent.forget()
+    first = grid("llvm_ad_spectral")
+    assert grid("llvm_ad_spectral") is first and grid("cuda_ad_spectral") is not first
+    persistent.forget()
