@@ -63,3 +63,7 @@ def register():
 
 def unregister():
     bpy.utils.unregister_class(MitsubaScratchEngine)
+    # Persistent Data's scratch tables (maybe hundreds of MB) go with the add-on, not with Blender
+    from ...mitsuba_bridge.bsdf import persistent
+
+    persistent.forget()

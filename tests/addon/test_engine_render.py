@@ -300,6 +300,7 @@ def test_persistent_data_keeps_the_scratch_tables_between_final_renders(lit, tmp
     object takes the kept tables, the same image bit for bit; switched off, nothing stays kept."""
     from scratch_iridescence.addon import storage
     from scratch_iridescence.mitsuba_bridge import scratch
+    from scratch_iridescence.addon.render import engine
     from scratch_iridescence.mitsuba_bridge.bsdf import persistent
 
     plane = next(obj for obj in lit.objects if obj.type == "MESH")
@@ -315,6 +316,15 @@ def test_persistent_data_keeps_the_scratch_tables_between_final_renders(lit, tmp
     lit.render.use_persistent_data = False
     third = render_to(lit, tmp_path / "third.exr")
     assert persistent.statistics()["kept"] == 0 and np.array_equal(first, third)
+    # disabling the add-on frees them too
+    lit.render.use_persistent_data = True
+    render_to(lit, tmp_path / "fourth.exr")
+    assert persistent.statistics()["kept"] == 1
+    engine.unregister()
+    try:
+        assert persistent.statistics()["kept"] == 0
+    finally:
+        engine.register()
 
 
 def test_blenders_own_panels_open_to_the_engine_except_eevee_settings(addon):
