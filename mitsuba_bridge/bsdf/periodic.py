@@ -193,7 +193,8 @@ def _chunk_families(chunk, starts, counts, references, segments, origin, h, nu, 
     usable = length > 0
     t = e / np.where(usable, length, 1.0)[:, None]
     width, depth = rows[:, 6], rows[:, 7]
-    runs_on = np.take(continuation, piece, axis=0).astype(np.float64) / h  # cells: straight on before the start, after the end
+    # cells: straight on before the start, after the end
+    runs_on = np.take(continuation, piece, axis=0).astype(np.float64) / h
     del rows, index
 
     # ---- family A: parallel to the cell's first piece; B: to its first piece not in A; others spoil the cell

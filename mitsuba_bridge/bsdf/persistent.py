@@ -7,10 +7,11 @@ the same for the scratch tables: inside :func:`kept_between_renders` (the
 builder opens it for a final render), a ``scratch_diffraction`` BSDF whose
 scratch set and build options equal a kept one's takes the kept tables and
 their Dr.Jit arrays instead of building them.  The key is a digest of the whole
-set (every array of the :class:`~mitsuba_bridge.scratch.ScratchSet`) and the
-options (the Mitsuba variant among them), so an edited set never meets stale tables.  Sets that the load in
-progress did not use are forgotten when it ends, and everything is forgotten
-by a load with the option off, so memory holds at most one scene's tables.
+set (every array of the :class:`~mitsuba_bridge.scratch.ScratchSet`), the build
+options and the Mitsuba variant, so an edited set never meets stale tables.
+Sets that the load in progress did not use are forgotten when it ends, and
+everything is forgotten by a load with the option off, so memory holds at most
+one scene's tables.
 
 numpy and hashlib (Mitsuba only for the active variant's name); the values kept are whatever the
 plugin builds.
@@ -66,7 +67,8 @@ def reuse_or_build(scratches, options: tuple, build):
     if not reused:
         value = build()
     with _lock:
-        _kept[key] = value
+        if not reused:
+            _kept[key] = value
         _counts["reused" if reused else "built"] += 1
         if _used is not None:
             _used.add(key)

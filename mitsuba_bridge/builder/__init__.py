@@ -7,6 +7,7 @@ A Mitsuba variant must be active before calling anything here.
 """
 from __future__ import annotations
 
+import contextlib
 from collections import Counter
 
 from ..scene import Mask, RenderSettings, SceneDescription, Transparent, walk_materials
@@ -98,9 +99,8 @@ def load_scene(description: SceneDescription, settings: RenderSettings, *, insta
 
     from ..bsdf.persistent import kept_between_renders
 
-    if keep_tables is None:
-        return mi.load_dict(scene_dict(description, settings, InMemory(), instancing=instancing))
-    with kept_between_renders(keep_tables):
+    kept = contextlib.nullcontext() if keep_tables is None else kept_between_renders(keep_tables)
+    with kept:
         return mi.load_dict(scene_dict(description, settings, InMemory(), instancing=instancing))
 
 
