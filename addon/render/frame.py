@@ -13,6 +13,7 @@ import bpy
 import numpy as np
 
 from .gather import GatherError, gather_scene, gather_settings
+from .turns import viewports_paused
 
 __all__ = ["render_frame", "MITSUBA_MISSING", "combined_rect"]
 
@@ -85,26 +86,28 @@ def render_frame(engine, depsgraph) -> None:
                                f"scene gives {width} x {height}")
         engine.update_stats("", f"Mitsuba | Loading {len(description.shapes)} shapes "
                                 f"({description.triangle_count:,} triangles)")
-        # Persistent Data (Cycles' option, Performance panel): scratch tables kept between final renders
-        mi_scene = builder.load_scene(description, settings, keep_tables=scene.render.use_persistent_data)
-        combined = result.layers[0].passes["Combined"]
-        refresh = passes.Refresh(REFRESH_SECONDS)
-        for progress in passes.render_passes(mi_scene, settings.spp, seed=settings.seed):
-            engine.update_progress(progress.fraction)
-            if refresh.due(progress):
-                # foreach_set copies in bulk: assigning ``rect`` goes pixel by pixel (about 1 s for 1080p).
-                combined.rect.foreach_set(combined_rect(progress.image, description.film.transparent).ravel())
-                engine.update_result(result)
-                status = f"Sample {progress.spp_done}/{progress.spp_total} | {progress.seconds:.1f} s"
-                engine.update_stats("", f"Mitsuba ({variant}) | {status}")
-                if bpy.app.background:  # a console render shows its progress, as Cycles' does
-                    print(f"Fra:{scene.frame_current} | Mitsuba Scratch | {status}", flush=True)
-            if not progress.finished and engine.test_break():
-                cancelled = True
-                # The image keeps every sample done so far, not only those shown at the last refresh.
-                combined.rect.foreach_set(combined_rect(progress.image, description.film.transparent).ravel())
-                engine.update_result(result)
-                break
+        # Viewports pause meanwhile: Dr.Jit traces every BSDF in the process (turns.py)
+        with viewports_paused(lambda: engine.update_stats("", "Mitsuba | Waiting for the viewport's pass")):
+            # Persistent Data (Cycles' option, Performance panel): scratch tables kept between final renders
+            mi_scene = builder.load_scene(description, settings, keep_tables=scene.render.use_persistent_data)
+            combined = result.layers[0].passes["Combined"]
+            refresh = passes.Refresh(REFRESH_SECONDS)
+            for progress in passes.render_passes(mi_scene, settings.spp, seed=settings.seed):
+                engine.update_progress(progress.fraction)
+                if refresh.due(progress):
+                    # foreach_set copies in bulk: assigning ``rect`` goes pixel by pixel (about 1 s for 1080p).
+                    combined.rect.foreach_set(combined_rect(progress.image, description.film.transparent).ravel())
+                    engine.update_result(result)
+                    status = f"Sample {progress.spp_done}/{progress.spp_total} | {progress.seconds:.1f} s"
+                    engine.update_stats("", f"Mitsuba ({variant}) | {status}")
+                    if bpy.app.background:  # a console render shows its progress, as Cycles' does
+                        print(f"Fra:{scene.frame_current} | Mitsuba Scratch | {status}", flush=True)
+                if not progress.finished and engine.test_break():
+                    cancelled = True
+                    # The image keeps every sample done so far, not only those shown at the last refresh.
+                    combined.rect.foreach_set(combined_rect(progress.image, description.film.transparent).ravel())
+                    engine.update_result(result)
+                    break
     except passes.RenderInterrupted:  # Ctrl-C in Blender's terminal: Blender's own handler heard it too
         cancelled = True
         if progress is not None:  # the samples of the chunks before the interrupted one

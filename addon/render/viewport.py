@@ -31,6 +31,7 @@ import numpy as np
 from ...mitsuba_bridge.scene import Film
 from . import sync
 from .frame import MITSUBA_MISSING, combined_rect
+from .turns import viewport_turn
 from .view import border_crop, view_camera
 
 __all__ = ["ViewportRender", "coalesce"]
@@ -234,30 +235,34 @@ class ViewportRender:
                         return
                     todo, self._pending = self._pending, []
                 try:
-                    session = self._apply(session, coalesce(todo))
-                    if session is not None and not session.finished:
-                        progress = session.step(0.0)
-                        linger = session.showing_preview
-                        # a strip of a CPU pass leaves the image as it was: nothing new to convert and post
-                        if progress is not None and progress is not posted:
-                            posted = progress
-                            rect = combined_rect(progress.image, session.description.film.transparent).ravel()
-                            with self._lock:
-                                self._latest, self._rect, self._version = progress, rect, self._version + 1
-                                self._crop = session.description.film.crop
-                                self._finished, self._error = session.finished, None
-                                self._stats = session.stats
+                    with viewport_turn():  # not while F12 renders (turns.py)
+                        session = self._apply(session, coalesce(todo))
+                        progress = None
+                        if session is not None and not session.finished:
+                            progress = session.step(0.0)
+                            linger = session.showing_preview
+                    # a strip of a CPU pass leaves the image as it was: nothing new to convert and post
+                    if progress is not None and progress is not posted:
+                        posted = progress
+                        rect = combined_rect(progress.image, session.description.film.transparent).ravel()
+                        with self._lock:
+                            self._latest, self._rect, self._version = progress, rect, self._version + 1
+                            self._crop = session.description.film.crop
+                            self._finished, self._error = session.finished, None
+                            self._stats = session.stats
                 except Exception as error:
                     traceback.print_exc()
                     if session is not None:
-                        session.close()
+                        with viewport_turn():
+                            session.close()
                     session = None  # the next posted build starts afresh
                     with self._lock:
                         self._error = _message(error)
                         self._finished = True
         finally:
             if session is not None:
-                session.close()
+                with viewport_turn():
+                    session.close()
 
     @staticmethod
     def _apply(session, updates):

@@ -10,8 +10,8 @@ Layout: pure Dr.Jit maths in :mod:`.complexmath`, :mod:`.faddeeva`,
 :mod:`.energy` (the albedo estimate of ``depth_phase="bounded"``); the
 numpy side in :mod:`.tables` (segment table, UV grid, cell size), :mod:`.references`
 (the grid's references to the pieces, sorted by offset), :mod:`.crossings`
-(crossing pairs of pieces), :mod:`.memory` (in-memory parameters) and :mod:`.persistent` (tables kept
-between final renders); the per-lane model in :mod:`.model` with the grid walk
+(crossing pairs of pieces), :mod:`.memory` (in-memory parameters) and :mod:`.persistent` (tables shared
+with live scenes and kept between final renders); the per-lane model in :mod:`.model` with the grid walk
 of :mod:`.lookup`; and the thin ``mi.BSDF`` class in :mod:`.plugin`, whose
 docstring is the manual.
 """

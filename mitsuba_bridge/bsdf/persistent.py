@@ -1,20 +1,32 @@
-"""Scratch tables kept between final renders: Blender's *Persistent Data* (docs/rendering.md).
+"""Scratch tables shared between scenes: with a live scene, and kept between final renders (docs/rendering.md).
 
 Building the tables of a dense set is most of a final render's set-up (the CD of
-``make paper``: ~17 s of set-up before 10 s of passes).  Cycles' *Persistent
-Data* keeps render data between renders at the cost of memory; the engine does
-the same for the scratch tables: inside :func:`kept_between_renders` (the
-builder opens it for a final render), a ``scratch_diffraction`` BSDF whose
-scratch set and build options equal a kept one's takes the kept tables and
-their Dr.Jit arrays instead of building them.  The key is a digest of the whole
-set (every array of the :class:`~mitsuba_bridge.scratch.ScratchSet`), the build
-options and the Mitsuba variant, so an edited set never meets stale tables.
-Sets that the load in progress did not use are forgotten when it ends, and
-everything is forgotten by a load with the option off, so memory holds at most
-one scene's tables.
+``make paper``: ~17 s of set-up before 10 s of passes).  Two ways avoid building
+them twice:
 
-numpy and hashlib (Mitsuba only for the active variant's name); the values kept are whatever the
-plugin builds.
+* **Shared with a live scene.**  A ``scratch_diffraction`` BSDF whose scratch set
+  and build options equal those of a BSDF alive elsewhere in the process takes
+  that BSDF's tables and their Dr.Jit arrays: F12 while the Rendered viewport
+  shows the same object, or the viewport opened while a final render's scene is
+  kept.  Costs no memory: the entries are weak, the tables live as long as some
+  scene holds them, and both scenes read them only.
+* **Kept between final renders** (Blender's *Persistent Data*, as in Cycles):
+  inside :func:`kept_between_renders` (the builder opens it for a final render)
+  the tables a load took or built are also held strongly, so the next F12 finds
+  them after the previous scene is gone.  Sets that the load in progress did not
+  use are forgotten when it ends, and everything is forgotten by a load with the
+  option off, so memory holds at most one scene's kept tables.
+
+The key is a digest of the whole set (every array of the
+:class:`~mitsuba_bridge.scratch.ScratchSet`), the build options and the Mitsuba
+variant, so an edited set never meets stale tables and a kept LLVM array never
+reaches a CUDA render.  Tables a pen stroke extended (:func:`share`) are entered
+without a digest, computed only when a new BSDF looks for tables of a set of the
+same size and options: a stroke on 300 000 scratches does not pay the ~50 ms of
+hashing them.
+
+numpy and hashlib (Mitsuba only for the active variant's name); the values shared are whatever the
+plugin builds, in a :class:`Shared` that the BSDF holds.
 """
 from __future__ import annotations
 
@@ -22,18 +34,38 @@ import contextlib
 import dataclasses
 import hashlib
 import threading
+import weakref
 
 import numpy as np
 
-__all__ = ["kept_between_renders", "reuse_or_build", "statistics", "forget"]
+__all__ = ["Shared", "kept_between_renders", "reuse_or_build", "share", "statistics", "forget"]
+
+
+@dataclasses.dataclass(eq=False)
+class Shared:
+    """One build's value (the plugin's tables and grid); the BSDFs using it hold it, the registry only
+    weakly (and strongly while kept)."""
+
+    value: object
+
+
+@dataclasses.dataclass(eq=False)
+class _Entry:
+    shared: weakref.ref
+    options: tuple
+    count: int  #: scratches in the set (a cheap filter before the digest)
+    scratches: object | None  #: the set while its digest is not computed yet (then None)
+    key: bytes | None
+
 
 _lock = threading.Lock()
-_kept: dict[bytes, object] = {}
+_live: list[_Entry] = []  #: every value built or shared since the start, weakly; dead entries pruned
+_kept: dict[bytes, Shared] = {}
 #: The keys the persistent load in progress took or built; None when none is open.  Process-wide, not
 #: per thread: Mitsuba may construct plugins on its loader threads.  (A viewport scene loaded meanwhile
 #: takes part too, harmlessly: the keys are the sets' contents.)
 _used: set[bytes] | None = None
-_counts = {"built": 0, "reused": 0}  #: tables built and taken inside persistent loads since the start
+_counts = {"built": 0, "reused": 0}  #: tables built and taken by new BSDFs since the start
 
 
 @contextlib.contextmanager
@@ -55,37 +87,65 @@ def kept_between_renders(enabled: bool):
             _used = None
 
 
-def reuse_or_build(scratches, options: tuple, build):
-    """The kept value for ``scratches`` and ``options`` if a persistent load is open and has one, else
-    ``build()`` (kept when a persistent load is open)."""
-    if _used is None:
-        return build()
-    key = _digest(scratches, (_variant(), *options))  # a kept LLVM array cannot serve a CUDA render
+def reuse_or_build(scratches, options: tuple, build) -> Shared:
+    """Tables for a new BSDF: those of a live or kept BSDF with an equal set and ``options``, else
+    ``build()``'s.  Kept when a persistent load is open."""
+    options = (_variant(), *options)  # a shared LLVM array cannot serve a CUDA render
+    key = _digest(scratches, options)
     with _lock:
-        value = _kept.get(key)
-    reused = value is not None
+        shared = _kept.get(key) or _find_live(key, scratches.count, options)
+    reused = shared is not None
     if not reused:
-        value = build()
+        shared = Shared(build())
     with _lock:
         if not reused:
-            _kept[key] = value
+            _live.append(_Entry(weakref.ref(shared), options, scratches.count, None, key))
         _counts["reused" if reused else "built"] += 1
         if _used is not None:
+            _kept[key] = shared
             _used.add(key)
-    return value
+    return shared
+
+
+def share(scratches, options: tuple, value) -> Shared:
+    """Enter tables built for an edited set (a stroke's extension) for later BSDFs to find; returns the
+    :class:`Shared` the BSDF holds.  The digest waits until a lookup needs it."""
+    shared = Shared(value)
+    with _lock:
+        _prune()  # the tables this stroke replaces
+        _live.append(_Entry(weakref.ref(shared), (_variant(), *options), scratches.count, scratches, None))
+    return shared
 
 
 def statistics() -> dict:
-    """``kept`` (scratch sets whose tables are kept now), ``built`` and ``reused`` (tables built and taken
-    inside persistent loads so far)."""
+    """``kept`` (scratch sets whose tables are kept now), ``live`` (tables some BSDF holds), ``built`` and
+    ``reused`` (tables built and taken by new BSDFs so far)."""
     with _lock:
-        return {"kept": len(_kept), **_counts}
+        _prune()
+        return {"kept": len(_kept), "live": len(_live), **_counts}
 
 
 def forget() -> None:
     """Drop every kept table (their memory goes when no scene uses them any more)."""
     with _lock:
         _kept.clear()
+
+
+def _find_live(key: bytes, count: int, options: tuple) -> Shared | None:
+    _prune()
+    for entry in _live:
+        if entry.count != count or entry.options != options:
+            continue
+        if entry.key is None:  # entered by share(): hash it now, once
+            entry.key, entry.scratches = _digest(entry.scratches, entry.options), None
+        shared = entry.shared()
+        if entry.key == key and shared is not None:
+            return shared
+    return None
+
+
+def _prune() -> None:
+    _live[:] = [entry for entry in _live if entry.shared() is not None]
 
 
 def _variant() -> str:

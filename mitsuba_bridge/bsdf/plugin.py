@@ -238,11 +238,12 @@ def _make_class() -> type:
                 cache = update_tables(previous, scratches, self.cell_size, crossings=self._height_field)
                 return cache, Grid.upload(cache.tables, periodic=periodic, continuation=continuation)
 
-            if previous is None:  # a new BSDF: a final render with Persistent Data may find its tables kept
-                options = (self.cell_size, self._height_field, periodic, continuation)
-                self.table_cache, self.grid = persistent.reuse_or_build(scratches, options, build)
-            else:
-                self.table_cache, self.grid = build()
+            options = (self.cell_size, self._height_field, periodic, continuation)
+            if previous is None:  # a new BSDF: another live scene or Persistent Data may hold its tables
+                self.shared_tables = persistent.reuse_or_build(scratches, options, build)
+            else:  # an edited set: entered for later scenes (F12 after painting in the viewport)
+                self.shared_tables = persistent.share(scratches, options, build())
+            self.table_cache, self.grid = self.shared_tables.value
             self.tables = self.table_cache.tables
             self.scratch_count = scratches.count
             self._rebuild_model()

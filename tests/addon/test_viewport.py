@@ -34,6 +34,14 @@ def view_of(camera_object, width=WIDTH, height=HEIGHT):
     return SimpleNamespace(region=SimpleNamespace(width=width, height=height), region_data=region_data)
 
 
+def wait_for(viewport, condition, timeout=120.0):
+    """Wait until ``condition()`` holds (the viewport's worker thread gets there), at most ``timeout`` s."""
+    end = time.monotonic() + timeout
+    while not condition() and time.monotonic() < end:
+        time.sleep(0.05)
+    assert condition(), viewport.latest()[3]
+
+
 class Recorder:
     """The calls ``view_draw`` makes on the engine."""
 
@@ -199,11 +207,8 @@ def test10_engine_paths_build_update_draw_and_stop(studio):
     depsgraph = bpy.context.evaluated_depsgraph_get()
     viewport.view_update(context, depsgraph)
 
-    def wait(condition, timeout=120.0):
-        end = time.monotonic() + timeout
-        while not condition() and time.monotonic() < end:
-            time.sleep(0.05)
-        assert condition(), viewport.latest()[3]
+    def wait(condition):
+        wait_for(viewport, condition)
 
     wait(lambda: viewport.latest()[2])
     progress, _, finished, error, stats = viewport.latest()
@@ -267,3 +272,68 @@ def test11_camera_view_with_a_render_border_renders_only_the_border(studio):
     assert error is None and progress.image.shape == (24, 32, 4)
     viewport.stop()
     assert viewport.join(timeout=30.0)
+
+
+def test12_f12_beside_the_rendered_viewport_takes_its_scratch_tables(studio, tmp_path):
+    """F12 while the viewport shows the same scratched object builds no scratch tables: it takes the
+    viewport's (mitsuba_bridge/bsdf/persistent.py), also without Persistent Data."""
+    pytest.importorskip("mitsuba")
+    from scratch_iridescence.mitsuba_bridge.bsdf import persistent
+
+    viewport = ViewportRender()
+    viewport.view_update(view_of(studio.camera), bpy.context.evaluated_depsgraph_get())
+    wait_for(viewport, lambda: viewport.latest()[2])
+    before = persistent.statistics()
+    studio.scene.render.use_persistent_data = False
+    studio.scene.render.filepath = str(tmp_path / "final")
+    bpy.ops.render.render(write_still=True)
+    after = persistent.statistics()
+    viewport.stop()
+    assert viewport.join(timeout=30.0)
+    assert len(list(tmp_path.glob("final.*"))) == 1  # the render was written
+    assert (after["built"] - before["built"], after["reused"] - before["reused"]) == (0, 1)
+
+
+def test13_final_renders_and_viewport_passes_take_turns():
+    """A final render waits for the viewport pass in progress (and says so once), viewports wait while it
+    renders, then go on (turns.py: Dr.Jit traces every BSDF in the process, a half-made one too)."""
+    import threading
+
+    from scratch_iridescence.addon.render import turns
+
+    events, waits = [], []
+    pass_started, end_pass = threading.Event(), threading.Event()
+
+    def viewport_pass(name, started=None, until=None):
+        with turns.viewport_turn():
+            events.append(name + " starts")
+            if started is not None:
+                started.set()
+            if until is not None:
+                until.wait(30)
+            events.append(name + " ends")
+
+    first = threading.Thread(target=viewport_pass, args=("pass 1", pass_started, end_pass))
+    first.start()
+    assert pass_started.wait(30)
+
+    def final_render():
+        with turns.viewports_paused(lambda: waits.append(turns.state())):
+            events.append("F12 starts")
+            second = threading.Thread(target=viewport_pass, args=("pass 2",))
+            second.start()
+            second.join(0.3)
+            assert second.is_alive()  # waits for the final render
+            events.append("F12 ends")
+        second.join(30)
+
+    f12 = threading.Thread(target=final_render)
+    f12.start()
+    f12.join(0.3)
+    assert f12.is_alive() and "F12 starts" not in events  # waits for pass 1
+    end_pass.set()
+    f12.join(30)
+    first.join(30)
+    assert events == ["pass 1 starts", "pass 1 ends", "F12 starts", "F12 ends", "pass 2 starts", "pass 2 ends"]
+    assert waits == [{"final_renders": 1, "viewports_working": 1}]
+    assert turns.state() == {"final_renders": 0, "viewports_working": 0}

@@ -83,33 +83,99 @@ def test_unscratched_metal_needs_no_scratch_file(variant, tmp_path):
     assert render.render_image(export.load_folder(tmp_path / "out"), 4).shape == (32, 48, 4)
 
 
+def load_plate(material, keep=None):
+    scene = builder.load_scene(plate_scene(material), S.RenderSettings(), keep_tables=keep)
+    (shape,) = scene.shapes()
+    return scene, shape.bsdf()
+
+
+def no_live_tables():
+    """Collect the scenes no one refers to any more (earlier tests' too) and check that no table is alive."""
+    import gc
+
+    from scratch_iridescence.mitsuba_bridge.bsdf import persistent
+
+    gc.collect()
+    assert persistent.statistics()["live"] == 0
+
+
+def test_a_new_scene_shares_the_tables_of_a_live_scene_with_an_equal_set(variant, scratches):
+    """F12 beside the Rendered viewport of the same object: the second scene takes the first one's tables
+    (nothing kept, nothing built), another option builds its own, and once the scenes are gone the
+    tables are too: a new load builds them again."""
+    from scratch_iridescence.mitsuba_bridge.bsdf import persistent
+
+    persistent.forget()
+    no_live_tables()
+    before = persistent.statistics()
+    first_scene, first = load_plate(metal(scratches))
+    second_scene, second = load_plate(metal(scratches))
+    assert second.grid is first.grid and second.table_cache is first.table_cache
+    incoherent_scene, incoherent = load_plate(metal(scratches, coherent=False))
+    assert incoherent.grid is not first.grid
+    after = persistent.statistics()
+    assert (after["kept"], after["built"] - before["built"], after["reused"] - before["reused"]) == (0, 2, 1)
+    del first_scene, first, second_scene, second, incoherent_scene, incoherent
+    no_live_tables()
+    load_plate(metal(scratches))
+    assert persistent.statistics()["built"] - after["built"] == 1
+
+
+def test_tables_a_stroke_extended_are_found_by_the_next_scene(variant, scratches):
+    """Paint in the viewport, then F12: the final render takes the viewport's extended tables; the digest
+    of the edited set is computed by that lookup, not by the stroke."""
+    from scratch_iridescence.mitsuba_bridge import bsdf as scratch_bsdf
+    from scratch_iridescence.mitsuba_bridge.bsdf import persistent
+
+    mi = pytest.importorskip("mitsuba")
+    no_live_tables()
+    viewport_scene, viewport = load_plate(metal(scratches))
+    stroke = scratch.random_scratches(2, seed=8, region=((0.3, 0.3), (0.7, 0.7)), length=(0.1, 0.3))
+    painted = scratch.ScratchSet.concatenate([scratches, stroke])
+    scratch_bsdf.update_scratches(mi.traverse(viewport_scene), painted)
+    assert viewport.table_cache.incremental and viewport.scratch_count == scratches.count + 2
+    final_scene, final = load_plate(metal(painted))
+    assert final.grid is viewport.grid
+    assert np.array_equal(np.asarray(mi.render(final_scene, spp=4, seed=3)),
+                          np.asarray(mi.render(viewport_scene, spp=4, seed=3)))
+    # the unpainted set is no longer in any scene: a load of it builds
+    import gc
+
+    gc.collect()
+    built = persistent.statistics()["built"]
+    load_plate(metal(scratches))
+    assert persistent.statistics()["built"] == built + 1
+
+
 def test_persistent_data_keeps_the_scratch_tables_of_an_unchanged_set_between_final_renders(variant, scratches):
     """``load_scene(keep_tables=True)`` (Blender's Persistent Data) takes the previous final render's tables
-    where the scratch set and its options are unchanged, builds anew where they changed, forgets what the
-    scene no longer uses, and renders the same image bit for bit; ``False`` forgets everything."""
+    where the scratch set and its options are unchanged, also after that scene is gone, builds anew where
+    they changed, forgets what the scene no longer uses, and renders the same image bit for bit;
+    ``False`` forgets everything."""
     mi = pytest.importorskip("mitsuba")
     from scratch_iridescence.mitsuba_bridge.bsdf import persistent
 
-    def load(material, keep):
-        scene = builder.load_scene(plate_scene(material), S.RenderSettings(), keep_tables=keep)
-        (shape,) = scene.shapes()
-        return scene, shape.bsdf()
-
     persistent.forget()
-    reference_scene, reference = load(metal(scratches), None)
+    no_live_tables()
+    reference_scene, reference = load_plate(metal(scratches))
+    expected = np.asarray(mi.render(reference_scene, spp=4, seed=3))
     assert persistent.statistics()["kept"] == 0  # the viewport's and exports' loads keep nothing
-    first_scene, first = load(metal(scratches), True)
-    second_scene, second = load(metal(scratches), True)
-    assert persistent.statistics()["kept"] == 1 and second.grid is first.grid and second.grid is not reference.grid
-    image = np.asarray(mi.render(second_scene, spp=4, seed=3))
-    assert np.array_equal(image, np.asarray(mi.render(reference_scene, spp=4, seed=3)))
+    del reference_scene, reference
+    no_live_tables()
+    first_scene, first = load_plate(metal(scratches), True)
+    first_grid = first.grid
+    del first_scene, first  # the previous F12's scene is gone; the kept tables stay
+    assert persistent.statistics()["live"] == 1
+    second_scene, second = load_plate(metal(scratches), True)
+    assert persistent.statistics()["kept"] == 1 and second.grid is first_grid
+    assert np.array_equal(np.asarray(mi.render(second_scene, spp=4, seed=3)), expected)
     # another option or one scratch fewer: new tables, and the old ones are no longer kept
-    _, incoherent = load(metal(scratches, coherent=False), True)
-    assert incoherent.grid is not first.grid and persistent.statistics()["kept"] == 1
+    _, incoherent = load_plate(metal(scratches, coherent=False), True)
+    assert incoherent.grid is not first_grid and persistent.statistics()["kept"] == 1
     fewer = scratches.select(np.arange(scratches.count) != 1234)
-    _, changed = load(metal(fewer), True)
+    _, changed = load_plate(metal(fewer), True)
     assert changed.scratch_count == scratches.count - 1 and changed.grid is not incoherent.grid
-    load(metal(scratches), False)
+    load_plate(metal(scratches), False)
     assert persistent.statistics()["kept"] == 0
 
 
@@ -120,8 +186,7 @@ def test_persistent_data_never_hands_tables_to_another_variant(variant, scratche
 
     def grid(name):
         monkeypatch.setattr(persistent, "_variant", lambda: name)
-        scene = builder.load_scene(plate_scene(metal(scratches)), S.RenderSettings(), keep_tables=True)
-        return scene.shapes()[0].bsdf().grid
+        return load_plate(metal(scratches), True)[1].grid
 
     persistent.forget()
     first = grid("llvm_ad_spectral")
