@@ -92,11 +92,11 @@ def sorted_references(a, b, h, origin, shape, margin):
                                        normal, shape, margin)
         order = np.argsort(cells, kind="stable")
         cells = cells[order]
-        first = np.searchsorted(cells, cells, side="left")  # start of each cell's run within the chunk
+        runs = np.flatnonzero(np.r_[True, cells[1:] != cells[:-1]])  # start of each cell's run in the chunk
+        first = np.repeat(runs, np.diff(np.r_[runs, len(cells)]))  # (a searchsorted of cells in itself: 5x slower)
         destination = cursor[cells] + (np.arange(len(cells)) - first)
         references[destination] = piece[order] + part.start
         offsets[destination] = low[order]
-        runs = np.flatnonzero(np.r_[True, cells[1:] != cells[:-1]])
         run_cells = cells[runs]
         spread[run_cells] = np.maximum(spread[run_cells], np.maximum.reduceat(extent[order], runs))
         cursor += np.bincount(cells, minlength=cell_count)

@@ -92,19 +92,26 @@ def subdivide(scratches: ScratchSet, *, max_length: float = np.inf,
         pieces = np.maximum(pieces, np.ceil(length / max_length))
     pieces = pieces.astype(np.int64)
 
-    edge = np.repeat(np.arange(len(first)), pieces)
-    piece_start = np.cumsum(pieces) - pieces
-    k = np.arange(len(edge)) - np.repeat(piece_start, pieces)
-    f0 = (k / pieces[edge])[:, None]
-    f1 = ((k + 1) / pieces[edge])[:, None]
-    direction = (end - start)[edge]
-    a = start[edge] + f0 * direction
-    b = np.where(f1 == 1.0, end[edge], start[edge] + f1 * direction)  # exact far ends
-    dt = (t_end - t_start)[edge]
-    t0 = t_start[edge] + f0[:, 0] * dt
-    t1 = t_start[edge] + f1[:, 0] * dt
+    if np.all(pieces == 1):  # no edge is split (the CD's chords): the same arithmetic, without the gathers
+        a = start + 0.0 * (end - start)
+        b = end
+        t0 = t_start + 0.0 * (t_end - t_start)
+        t1 = t_start + 1.0 * (t_end - t_start)
+        scratch = edge_scratch
+    else:
+        edge = np.repeat(np.arange(len(first)), pieces)
+        piece_start = np.cumsum(pieces) - pieces
+        k = np.arange(len(edge)) - np.repeat(piece_start, pieces)
+        f0 = (k / pieces[edge])[:, None]
+        f1 = ((k + 1) / pieces[edge])[:, None]
+        direction = (end - start)[edge]
+        a = start[edge] + f0 * direction
+        b = np.where(f1 == 1.0, end[edge], start[edge] + f1 * direction)  # exact far ends
+        dt = (t_end - t_start)[edge]
+        t0 = t_start[edge] + f0[:, 0] * dt
+        t1 = t_start[edge] + f1[:, 0] * dt
+        scratch = edge_scratch[edge]
 
-    scratch = edge_scratch[edge]
     width, depth = width_depth_at(scratches, scratch, 0.5 * (t0 + t1))
     return Segments(a=a, b=b, scratch=scratch, t0=t0, t1=t1, width=width, depth=depth,
                     profile=scratches.profile[scratch])

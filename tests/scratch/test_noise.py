@@ -92,3 +92,9 @@ def test_width_depth_at_applies_each_scratchs_own_variation():
         np.testing.assert_array_equal(depth, expected_d)
     w0, d0 = width_depth_at(scratches, np.zeros(101, int), t)
     assert np.all(w0 == 1e-6) and np.all(d0 == 100e-9)
+    # all three interleaved in one call (the noise runs only where an amplitude is not 0): the same values
+    index = np.tile(np.arange(3), 101)
+    width, depth = width_depth_at(scratches, index, np.repeat(t, 3))
+    for k in range(3):
+        np.testing.assert_array_equal(np.stack([width[k::3], depth[k::3]]),
+                                      np.stack(width_depth_at(scratches, np.full(101, k), t)))

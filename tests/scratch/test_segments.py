@@ -18,6 +18,20 @@ def test_constant_scratches_keep_one_segment_per_edge(two_scratches):
     np.testing.assert_allclose(segments.t1, [1, 0.5, 1])
 
 
+def test_unsplit_edges_come_out_as_when_other_edges_split(plate_scratches):
+    """A set whose edges all stay whole (no variation, no max_length: the CD's chords) skips the gathers of
+    the general path; its segments are the general path's bit for bit (same arithmetic, signs of zero too)."""
+    rng = np.random.default_rng(3)  # polylines of 20 vertices: t0 + (t1 - t0) is not always t1 to the bit
+    polylines = [np.cumsum(rng.normal(0.0, 0.01, (20, 2)), axis=0) + 0.5 for _ in range(200)]
+    constant = ScratchSet.from_polylines(polylines, width=1e-6, depth=1e-7)
+    varying = plate_scratches.select(np.arange(1))  # one varying scratch: every edge goes the general way
+    alone, mixed = subdivide(constant), subdivide(ScratchSet.concatenate([constant, varying]))
+    assert len(alone) == 200 * 19
+    kept = mixed.scratch < constant.count
+    for name in ("a", "b", "t0", "t1", "width", "depth", "scratch", "profile"):
+        np.testing.assert_array_equal(getattr(alone, name).view(np.uint8), getattr(mixed, name)[kept].view(np.uint8))
+
+
 def test_segments_cover_each_polyline_without_gaps(plate_scratches):
     segments = subdivide(plate_scratches, max_length=0.01)
     assert segments.length.max() <= 0.01 + 1e-12
