@@ -1,12 +1,15 @@
-"""Final renders and Rendered viewports take turns on Mitsuba (docs/rendering.md, Rendered viewport).
+"""F12 and the Rendered viewports take turns on Mitsuba (docs/rendering.md, Rendered viewport).
 
-Cycles lets F12 and the viewport render at once.  Here both run Dr.Jit in one
-process, and Dr.Jit traces a call through a BSDF pointer for *every* BSDF alive
-in the process: a viewport pass traced while F12 builds its scene traced the
-final render's half-made BSDF (an AttributeError that ended the viewport
-session), and F12's frozen passes fell back to tracing.  So a final render
-waits for the viewport pass in progress, viewports wait while it renders, and
-resume where they were.  On a 2-core CPU running both at once only halved each.
+Cycles lets F12 and viewports render at once.  Here all of them run Dr.Jit in
+one process, and Dr.Jit traces a call through a BSDF pointer for *every* BSDF
+alive in the process: a viewport pass traced while F12 built its scene traced
+the final render's half-made BSDF (an AttributeError that ended the viewport
+session), and F12's frozen passes fell back to tracing; two viewports in
+Rendered shading meet the same way.  So one viewport step (a build, an update,
+a strip or pass) runs at a time, in the order they asked (first come, first
+served: two viewports alternate); a final render waits for the step in
+progress, and no viewport step starts while it renders.  On a 2-core CPU
+running both at once only halved each.
 
 Pure Python (``threading``), no bpy: the engine's F12 path holds
 :func:`viewports_paused`; each viewport worker wraps its Mitsuba work in
@@ -21,21 +24,23 @@ __all__ = ["viewports_paused", "viewport_turn", "state"]
 
 _condition = threading.Condition()
 _final_renders = 0  #: final renders holding viewports_paused()
-_viewports_working = 0  #: viewport workers inside viewport_turn()
+_working = False  #: a viewport step is running
+_next_ticket = 0  #: the ticket the next viewport step draws
+_serving = 0  #: the ticket whose step runs (or may run) now
 
 
 @contextlib.contextmanager
 def viewports_paused(waiting=None):
-    """Around a final render's Mitsuba work: no viewport pass runs meanwhile.
+    """Around a final render's Mitsuba work: no viewport step runs meanwhile.
 
-    Waits for the passes in progress to end; ``waiting()`` is called once first if any is (the engine
+    Waits for the step in progress to end; ``waiting()`` is called once first if one is (the engine
     shows it in the status bar)."""
     global _final_renders
     with _condition:
         _final_renders += 1
-        if _viewports_working and waiting is not None:
+        if _working and waiting is not None:
             waiting()
-        while _viewports_working:
+        while _working:
             _condition.wait()
     try:
         yield
@@ -47,21 +52,25 @@ def viewports_paused(waiting=None):
 
 @contextlib.contextmanager
 def viewport_turn():
-    """Around one viewport step (a build, an update, a pass): waits while a final render runs."""
-    global _viewports_working
+    """Around one viewport step: waits for the steps asked for before it and while a final render runs."""
+    global _working, _next_ticket, _serving
     with _condition:
-        while _final_renders:
+        ticket = _next_ticket
+        _next_ticket += 1
+        while _final_renders or _serving != ticket:
             _condition.wait()
-        _viewports_working += 1
+        _working = True
     try:
         yield
     finally:
         with _condition:
-            _viewports_working -= 1
+            _working = False
+            _serving += 1
             _condition.notify_all()
 
 
 def state() -> dict:
-    """``final_renders`` and ``viewports_working`` now (tests)."""
+    """``final_renders``, ``viewports_working`` (0 or 1) and ``viewports_waiting`` now (tests)."""
     with _condition:
-        return {"final_renders": _final_renders, "viewports_working": _viewports_working}
+        return {"final_renders": _final_renders, "viewports_working": int(_working),
+                "viewports_waiting": _next_ticket - _serving - int(_working)}

@@ -296,7 +296,8 @@ def test12_f12_beside_the_rendered_viewport_takes_its_scratch_tables(studio, tmp
 
 def test13_final_renders_and_viewport_passes_take_turns():
     """A final render waits for the viewport pass in progress (and says so once), viewports wait while it
-    renders, then go on (turns.py: Dr.Jit traces every BSDF in the process, a half-made one too)."""
+    renders, then go on; two viewports step one at a time (turns.py: Dr.Jit traces every BSDF in the
+    process, a half-made one too)."""
     import threading
 
     from scratch_iridescence.addon.render import turns
@@ -335,5 +336,24 @@ def test13_final_renders_and_viewport_passes_take_turns():
     f12.join(30)
     first.join(30)
     assert events == ["pass 1 starts", "pass 1 ends", "F12 starts", "F12 ends", "pass 2 starts", "pass 2 ends"]
-    assert waits == [{"final_renders": 1, "viewports_working": 1}]
-    assert turns.state() == {"final_renders": 0, "viewports_working": 0}
+    assert waits == [{"final_renders": 1, "viewports_working": 1, "viewports_waiting": 0}]
+
+    # two viewports in Rendered shading: one step at a time, and both get their turns
+    inside, most, steps = [0], [0], {"A": 0, "B": 0}
+
+    def viewport(name):
+        for _ in range(40):
+            with turns.viewport_turn():
+                inside[0] += 1
+                most[0] = max(most[0], inside[0])
+                steps[name] += 1
+                time.sleep(0.001)
+                inside[0] -= 1
+
+    workers = [threading.Thread(target=viewport, args=(name,)) for name in steps]
+    for worker in workers:
+        worker.start()
+    for worker in workers:
+        worker.join(60)
+    assert most == [1] and steps == {"A": 40, "B": 40}
+    assert turns.state() == {"final_renders": 0, "viewports_working": 0, "viewports_waiting": 0}
