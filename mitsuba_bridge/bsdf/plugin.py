@@ -9,7 +9,7 @@ import drjit as dr
 import mitsuba as mi
 
 from .. import scratch
-from . import memory, parameters, persistent
+from . import memory, parameters, persistent, tables
 from .fresnel import material_textures
 from .lookup import Grid
 from .model import Model
@@ -238,7 +238,7 @@ def _make_class() -> type:
                 cache = update_tables(previous, scratches, self.cell_size, crossings=self._height_field)
                 return cache, Grid.upload(cache.tables, periodic=periodic, continuation=continuation)
 
-            options = (self.cell_size, self._height_field, periodic, continuation)
+            options = (self.cell_size, self._height_field, periodic, continuation, tables.build_constants())
             if previous is None:  # a new BSDF: another live scene or Persistent Data may hold its tables
                 self.shared_tables = persistent.reuse_or_build(scratches, options, build)
             else:  # an edited set: entered for later scenes (F12 after painting in the viewport)

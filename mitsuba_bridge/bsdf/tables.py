@@ -58,7 +58,8 @@ from .crossings import find_crossings
 from .references import (CHUNK, aligned, cell_references, doubled_angles, empty_aligned, expand, normals,
                          offsets_in_cell, sorted_references)
 
-__all__ = ["GridTables", "build_tables", "aligned", "cell_references", "TARGET_PER_CELL", "MAX_PIECE_UV"]
+__all__ = ["GridTables", "build_tables", "build_constants", "aligned", "cell_references", "TARGET_PER_CELL",
+           "MAX_PIECE_UV"]
 
 #: References per occupied cell aimed at by the automatic cell size.
 TARGET_PER_CELL = 8.0
@@ -82,6 +83,16 @@ SEARCH_REFERENCES = 1 << 23
 SEGMENT_COLUMNS = 8
 #: Dilation of every piece's cells, in cells (float32 rounding of the kernel's cell coordinates).
 CELL_DILATION = 1e-2
+
+
+def build_constants() -> tuple:
+    """The module constants that shape a set's tables, as they are now: part of the key under which
+    tables are shared between scenes (persistent.py), so tables built under other values (a test or a
+    study that changes one) are never taken for these."""
+    from . import crossings
+
+    return (TARGET_PER_CELL, SPREAD_TESTS, MAX_PIECE_UV, MAX_CELLS, MAX_REFERENCES, SEARCH_PIECES,
+            SEARCH_REFERENCES, CELL_DILATION, STRAIGHT_ON_SIN, crossings.MIN_SINE, crossings.MAX_PAIRS)
 
 
 @dataclass(frozen=True, eq=False)

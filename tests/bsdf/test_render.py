@@ -102,7 +102,8 @@ def test03_frozen_chunks_give_the_traced_image_bit_for_bit(settings, monkeypatch
                         lambda self, *arguments: (used.append(self), original(self, *arguments))[1])
     frozen = list(render.render_chunks(scene, schedule, spp))[-1].image
     passes = used[0]
-    assert passes.enabled and passes.failure is None and passes.recordings <= 3
+    assert passes.enabled and passes.failure is None, passes.failure
+    assert passes.recordings <= 3
     assert frozen.tobytes() == traced.tobytes() and np.abs(traced[..., :3]).max() > 0
 
 
