@@ -223,7 +223,9 @@ def _chunk_families(chunk, starts, counts, references, segments, origin, h, nu, 
 
 
 def _any_per_cell(flags, cell_of, cells):
-    return np.bincount(cell_of, weights=flags, minlength=cells) > 0
+    result = np.zeros(cells, bool)
+    result[cell_of[flags]] = True  # a scatter of the few flagged entries (a weighted bincount summed them all)
+    return result
 
 
 def _project(vectors, direction_x, direction_y):
@@ -249,7 +251,7 @@ def _family(slot, member, t_f, other, local, a, e, t, runs_on, width, depth, chu
     del start, direction, along_to_centre
     lo, hi = np.minimum(s0, s1), np.maximum(s0, s1)
     forward = s1 >= s0
-    before, after = runs_on[idx, 0], runs_on[idx, 1]
+    before, after = np.take(runs_on[:, 0], idx), np.take(runs_on[:, 1], idx)
     lo_on = lo - np.where(forward, before, after)  # how far the track surely runs
     hi_on = hi + np.where(forward, after, before)
     del tx, ty, s0, s1, forward, before, after
@@ -389,21 +391,28 @@ def _line_of_ends(run: _Run, side, cells):
     and it crosses the tracks at |cos| >= ``KINK_MIN_COS``."""
     cell = run.track_cell
     along = run.track_hi if side > 0 else run.track_lo
-    t = run.t_f[cell]
+    t = np.take(run.t_f, cell, axis=0)  # (rows by np.take: see _chunk_families)
     points = run.track_offset[:, None] * np.stack([-t[:, 1], t[:, 0]], axis=1) + along[:, None] * t
     starts = cell_first_piece(cell, cells)
     counts = np.bincount(cell, minlength=cells)
     lasts = starts + np.maximum(counts, 1) - 1
-    direction = points[lasts] - points[starts]
+    first_points = np.take(points, starts, axis=0)
+    direction = np.take(points, lasts, axis=0) - first_points
     length = np.hypot(direction[:, 0], direction[:, 1])
     valid = (counts > 1) & (length > 0) & np.isfinite(length)
     normal = np.stack([-direction[:, 1], direction[:, 0]], axis=1) / np.where(valid, length, 1.0)[:, None]
-    normal *= np.where(np.sum(normal * (-side * run.t_f), axis=1) < 0, -1.0, 1.0)[:, None]  # into the run
-    offset = np.sum(normal * points[starts], axis=1)
-    off_line = ~np.isfinite(along) | (np.abs(np.sum(normal[cell] * points, axis=1) - offset[cell])
-                                      > KINK_TOLERANCE * run.pitch[cell])
-    valid &= ~_any_per_cell(off_line, cell, cells) & (np.abs(np.sum(normal * run.t_f, axis=1)) >= KINK_MIN_COS)
+    normal *= np.where(_dot(normal, -side * run.t_f) < 0, -1.0, 1.0)[:, None]  # into the run
+    offset = _dot(normal, first_points)
+    off_line = ~np.isfinite(along) | (np.abs(_dot(np.take(normal, cell, axis=0), points) - np.take(offset, cell))
+                                      > KINK_TOLERANCE * np.take(run.pitch, cell))
+    valid &= ~_any_per_cell(off_line, cell, cells) & (np.abs(_dot(normal, run.t_f)) >= KINK_MIN_COS)
     return normal, offset, valid
+
+
+def _dot(x, y):
+    """Row-wise dot products of (N, 2) arrays: ``np.sum(x * y, axis=1)`` to the bit, without numpy's slow
+    reduction along a short axis."""
+    return x[:, 0] * y[:, 0] + x[:, 1] * y[:, 1]
 
 
 def _per_cell_extreme(ufunc, values, cell_of, cells, fill):

@@ -89,61 +89,67 @@ def load_plate(material, keep=None):
     return scene, shape.bsdf()
 
 
-def no_live_tables():
-    """Collect the scenes no one refers to any more (earlier tests' too) and check that no table is alive."""
+def own_set(scratches, left_out):
+    """The set less one scratch: a set no other test's scene (maybe not yet collected) can hold tables of."""
+    return scratches.select(np.arange(scratches.count) != left_out)
+
+
+def gone(reference):
+    """Whether the object behind the weak ``reference`` is freed once unreachable objects are collected."""
     import gc
 
-    from scratch_iridescence.mitsuba_bridge.bsdf import persistent
-
     gc.collect()
-    assert persistent.statistics()["live"] == 0
+    return reference() is None
 
 
 def test_a_new_scene_shares_the_tables_of_a_live_scene_with_an_equal_set(variant, scratches):
     """F12 beside the Rendered viewport of the same object: the second scene takes the first one's tables
     (nothing kept, nothing built), another option builds its own, and once the scenes are gone the
     tables are too: a new load builds them again."""
+    import weakref
+
     from scratch_iridescence.mitsuba_bridge.bsdf import persistent
 
-    persistent.forget()
-    no_live_tables()
+    own = own_set(scratches, 11)
     before = persistent.statistics()
-    first_scene, first = load_plate(metal(scratches))
-    second_scene, second = load_plate(metal(scratches))
+    first_scene, first = load_plate(metal(own))
+    second_scene, second = load_plate(metal(own))
     assert second.grid is first.grid and second.table_cache is first.table_cache
-    incoherent_scene, incoherent = load_plate(metal(scratches, coherent=False))
+    incoherent_scene, incoherent = load_plate(metal(own, coherent=False))
     assert incoherent.grid is not first.grid
     after = persistent.statistics()
     assert (after["kept"], after["built"] - before["built"], after["reused"] - before["reused"]) == (0, 2, 1)
+    shared = weakref.ref(first.shared_tables)
     del first_scene, first, second_scene, second, incoherent_scene, incoherent
-    no_live_tables()
-    load_plate(metal(scratches))
+    assert gone(shared)  # the registry holds tables weakly
+    load_plate(metal(own))
     assert persistent.statistics()["built"] - after["built"] == 1
 
 
 def test_tables_a_stroke_extended_are_found_by_the_next_scene(variant, scratches):
     """Paint in the viewport, then F12: the final render takes the viewport's extended tables; the digest
     of the edited set is computed by that lookup, not by the stroke."""
+    import weakref
+
     from scratch_iridescence.mitsuba_bridge import bsdf as scratch_bsdf
     from scratch_iridescence.mitsuba_bridge.bsdf import persistent
 
     mi = pytest.importorskip("mitsuba")
-    no_live_tables()
-    viewport_scene, viewport = load_plate(metal(scratches))
+    own = own_set(scratches, 12)
+    viewport_scene, viewport = load_plate(metal(own))
+    unpainted = weakref.ref(viewport.shared_tables)
     stroke = scratch.random_scratches(2, seed=8, region=((0.3, 0.3), (0.7, 0.7)), length=(0.1, 0.3))
-    painted = scratch.ScratchSet.concatenate([scratches, stroke])
+    painted = scratch.ScratchSet.concatenate([own, stroke])
     scratch_bsdf.update_scratches(mi.traverse(viewport_scene), painted)
-    assert viewport.table_cache.incremental and viewport.scratch_count == scratches.count + 2
+    assert viewport.table_cache.incremental and viewport.scratch_count == own.count + 2
     final_scene, final = load_plate(metal(painted))
     assert final.grid is viewport.grid
     assert np.array_equal(np.asarray(mi.render(final_scene, spp=4, seed=3)),
                           np.asarray(mi.render(viewport_scene, spp=4, seed=3)))
-    # the unpainted set is no longer in any scene: a load of it builds
-    import gc
-
-    gc.collect()
+    # the unpainted set's tables went with the stroke: a load of it builds
+    assert gone(unpainted)
     built = persistent.statistics()["built"]
-    load_plate(metal(scratches))
+    load_plate(metal(own))
     assert persistent.statistics()["built"] == built + 1
 
 
@@ -152,30 +158,34 @@ def test_persistent_data_keeps_the_scratch_tables_of_an_unchanged_set_between_fi
     where the scratch set and its options are unchanged, also after that scene is gone, builds anew where
     they changed, forgets what the scene no longer uses, and renders the same image bit for bit;
     ``False`` forgets everything."""
+    import weakref
+
     mi = pytest.importorskip("mitsuba")
     from scratch_iridescence.mitsuba_bridge.bsdf import persistent
 
+    own = own_set(scratches, 13)
     persistent.forget()
-    no_live_tables()
-    reference_scene, reference = load_plate(metal(scratches))
+    reference_scene, reference = load_plate(metal(own))
     expected = np.asarray(mi.render(reference_scene, spp=4, seed=3))
     assert persistent.statistics()["kept"] == 0  # the viewport's and exports' loads keep nothing
+    shared = weakref.ref(reference.shared_tables)
     del reference_scene, reference
-    no_live_tables()
-    first_scene, first = load_plate(metal(scratches), True)
+    assert gone(shared)
+    first_scene, first = load_plate(metal(own), True)
     first_grid = first.grid
+    shared = weakref.ref(first.shared_tables)
     del first_scene, first  # the previous F12's scene is gone; the kept tables stay
-    assert persistent.statistics()["live"] == 1
-    second_scene, second = load_plate(metal(scratches), True)
+    assert not gone(shared)
+    second_scene, second = load_plate(metal(own), True)
     assert persistent.statistics()["kept"] == 1 and second.grid is first_grid
     assert np.array_equal(np.asarray(mi.render(second_scene, spp=4, seed=3)), expected)
     # another option or one scratch fewer: new tables, and the old ones are no longer kept
-    _, incoherent = load_plate(metal(scratches, coherent=False), True)
+    _, incoherent = load_plate(metal(own, coherent=False), True)
     assert incoherent.grid is not first_grid and persistent.statistics()["kept"] == 1
-    fewer = scratches.select(np.arange(scratches.count) != 1234)
+    fewer = own.select(np.arange(own.count) != 1234)
     _, changed = load_plate(metal(fewer), True)
-    assert changed.scratch_count == scratches.count - 1 and changed.grid is not incoherent.grid
-    load_plate(metal(scratches), False)
+    assert changed.scratch_count == own.count - 1 and changed.grid is not incoherent.grid
+    load_plate(metal(own), False)
     assert persistent.statistics()["kept"] == 0
 
 
