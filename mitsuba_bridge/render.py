@@ -166,16 +166,22 @@ def film_pixels(scene) -> int:
     return width * height
 
 
-def render_chunks(scene, chunks: Iterable[Chunk], spp_total: int, *, freeze: bool = True) -> Iterator[Progress]:
+def render_chunks(scene, chunks: Iterable[Chunk], spp_total: int, *, freeze: bool = True,
+                  overlap: bool | None = None) -> Iterator[Progress]:
     """Render the given ``chunks`` (consecutive ones of a schedule) in order and yield the running mean after each.
 
     ``spp_total`` is the sum of their spp (for ``fraction``).  Stop iterating to
-    cancel: no work is left behind.  ``freeze``: record the first chunk of each
+    cancel: no work is left behind but, with ``overlap``, the one pass already
+    launched.  ``freeze``: record the first chunk of each
     size with ``dr.freeze`` and replay it for the others
     (:class:`~mitsuba_bridge.freezing.FrozenRender`: the same kernels, so the
     same image bit for bit, without tracing the integrator and the Python BSDF
     again for every chunk); a scene that cannot be recorded renders traced, and
-    every later :attr:`Progress.traced_because` says why.
+    every later :attr:`Progress.traced_because` says why.  ``overlap`` (default: on a
+    CUDA variant) launches the next chunk as soon as this one's image is on the host, so the
+    GPU renders while the host adds the image to the sums and the caller shows it; the
+    same images bit for bit (the launch only moves earlier).  Off on the CPU, where both
+    would share the same cores.
     """
     from .freezing import FrozenRender
 
@@ -183,17 +189,30 @@ def render_chunks(scene, chunks: Iterable[Chunk], spp_total: int, *, freeze: boo
     indices = [chunk.index for chunk in chunks]
     if indices and indices != list(range(indices[0], indices[0] + len(indices))):
         raise ValueError("render_chunks needs consecutive chunks of one schedule (the sums follow their indices)")
+    if overlap is None:
+        overlap = _on_gpu()
     passes = FrozenRender(enabled=freeze)
     sums, done, start = PairwiseSum(chunks[0].index if chunks else 0), 0, time.perf_counter()
+    launched = None  # the next chunk's image, already launched (overlap)
     for number, chunk in enumerate(chunks, start=1):
-        image = np.asarray(passes(scene, 0, chunk.spp, chunk.seed), dtype=np.float32)
+        result = launched if launched is not None else passes(scene, 0, chunk.spp, chunk.seed)
+        image = np.asarray(result, dtype=np.float32)  # waits for this chunk's kernels
+        del result
         if scene.integrator().should_stop():  # a SIGINT while a traced or recorded pass ran (render_whole)
             raise RenderInterrupted("Mitsuba stopped the render early (interrupted)")
+        launched = passes(scene, 0, chunks[number].spp, chunks[number].seed) \
+            if overlap and number < len(chunks) else None
         # float32 × an integer below 2**29 is exact in float64: the only rounding is in the fixed-order sum.
         sums.add(image.astype(np.float64) * chunk.spp)
         done += chunk.spp
         yield Progress(number, done, spp_total, time.perf_counter() - start, chunk, sums, sums.partials(),
                        traced_because=passes.failure)
+
+
+def _on_gpu() -> bool:
+    import mitsuba as mi
+
+    return mi.variant().startswith("cuda")
 
 
 def render_passes(scene, spp: int, *, seed: int = 0) -> Iterator[Progress]:

@@ -46,6 +46,7 @@ import numpy as np
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--lanes", type=int, default=1 << 20)
+    parser.add_argument("--variant", default="llvm_ad_spectral", help="cuda_ad_spectral: on an NVIDIA GPU")
     parser.add_argument("--repeat", type=int, default=5)
     parser.add_argument("--segments", type=int, nargs="*", default=[0, 1, 4, 16])
     parser.add_argument("--dense", action="store_true", help="also time queries on the CD and the grating")
@@ -59,7 +60,7 @@ def main():
     import drjit as dr
     import mitsuba as mi
 
-    mi.set_variant("llvm_ad_spectral")
+    mi.set_variant(args.variant)
     from scratch_iridescence import mitsuba_bridge
     from scratch_iridescence.mitsuba_bridge import bsdf as scratch_bsdf
     from scratch_iridescence.mitsuba_bridge.scratch import ScratchSet

@@ -170,6 +170,26 @@ def test11_the_image_is_the_same_bit_for_bit_whatever_the_timing(lit_scene, monk
     assert progress.image.tobytes() == quiet.tobytes()
 
 
+def test11b_overlapped_chunks_give_the_same_image_and_leave_one_pass_in_flight_when_stopped(lit_scene, monkeypatch):
+    """``overlap`` (the GPU's default) launches chunk k + 1 once chunk k's image is on the host: the same
+    images bit for bit; stopping after chunk 2 has launched chunk 3 and nothing more, and a render after
+    that is unharmed."""
+    chunks = schedule.sample_schedule(4096 + 7, 32 * 24, 3)
+    plain = [p.image for p in render.render_chunks(lit_scene, chunks, 4096 + 7, overlap=False)]
+    overlapped = [p.image for p in render.render_chunks(lit_scene, chunks, 4096 + 7, overlap=True)]
+    assert len(overlapped) == len(plain) > 3
+    assert all(a.tobytes() == b.tobytes() for a, b in zip(plain, overlapped))
+
+    count = []
+    spy_on_chunks(monkeypatch, lambda render_call, spp, seed: (count.append(1), render_call())[1])
+    for progress in render.render_chunks(lit_scene, chunks, 4096 + 7, overlap=True):
+        if progress.index == 2:
+            break
+    assert len(count) == 3
+    after = list(render.render_chunks(lit_scene, chunks, 4096 + 7, overlap=True))[-1].image
+    assert after.tobytes() == plain[-1].tobytes()
+
+
 def test12_chunks_must_be_consecutive():
     chunks = schedule.sample_schedule(37, 32 * 24)
     with pytest.raises(ValueError, match="consecutive chunks"):
