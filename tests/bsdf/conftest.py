@@ -1,15 +1,19 @@
 """Variant and plugin registration for the BSDF tests (llvm_ad_spectral: the CPU JIT variant).
 
+``SCRATCH_TEST_VARIANT=cuda_ad_spectral`` runs them on an NVIDIA GPU instead (docs/bsdf.md, GPU).
+
 The variant is set when pytest collects this folder, so that test modules may
 use Mitsuba types in parametrisations; the fixtures restore it after tests
 that switch variants.
 """
+import os
+
 import mitsuba as mi
 import pytest
 
 from scratch_iridescence import mitsuba_bridge
 
-VARIANT = "llvm_ad_spectral"
+VARIANT = os.environ.get("SCRATCH_TEST_VARIANT", "llvm_ad_spectral")
 mi.set_variant(VARIANT)
 mitsuba_bridge.register_plugins()
 
