@@ -51,8 +51,6 @@ Units as everywhere in the kernels: µm, 1/µm.
 from __future__ import annotations
 
 import math
-import os
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -63,7 +61,7 @@ import numpy as np
 from . import profiles
 from .complexmath import Cx, expi
 from .faddeeva import faddeeva
-from .references import aligned
+from .references import aligned, ordered_map
 from .window import window_integral
 
 __all__ = ["PeriodicTables", "periodic_families", "Family", "find_family", "family_field", "family_intensity",
@@ -117,10 +115,9 @@ SLOTS = 2
 #: Floats per family: n_u, n_v, o_first, pitch | o_last, s_lo, s_hi, W | ±D, l_u, l_v, l_offset (its end
 #: line's normal into the family's side and its offset, :func:`_end_lines`; zero where none).
 FAMILY_FLOATS = 12
-#: References per chunk of the numpy build (bounds its temporaries, ~150 bytes per reference) ...
+#: References per chunk of the numpy build (bounds its temporaries, ~150 bytes per reference; the chunks
+#: run on the table build's threads, references.ordered_map).
 CHUNK_REFERENCES = 1 << 19
-#: ... and chunks built at once.
-BUILD_THREADS = 4
 
 
 @dataclass(frozen=True, eq=False)
@@ -166,8 +163,7 @@ def periodic_families(cell_start, references, segments, cell_frames, origin, cel
         return _chunk_families(chunk, starts, counts, references, segments, np.asarray(origin, np.float64),
                                float(cell_size), nu, frames, normals, continuation)
 
-    with ThreadPoolExecutor(max_workers=min(BUILD_THREADS, os.cpu_count() or 1)) as pool:
-        kinks = sum(pool.map(run, chunks))
+    kinks = sum(ordered_map(run, chunks))
     filled = frames[:, :, 3] > 0
     if not filled.any():
         return None

@@ -7,13 +7,19 @@ per-cell sort by offset, and 64-byte aligned buffers for the upload.
 """
 from __future__ import annotations
 
+import itertools
+import os
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 
 __all__ = ["cell_references", "sorted_references", "doubled_angles", "normals", "offsets_in_cell",
-           "expand", "aligned", "empty_aligned", "aligned_array", "CHUNK"]
+           "expand", "aligned", "empty_aligned", "aligned_array", "ordered_map", "CHUNK", "BUILD_THREADS"]
 
 #: Pieces processed at a time.
 CHUNK = 1 << 16
+#: Most threads a table build uses (numpy releases the GIL in its loops; each chunk is independent).
+BUILD_THREADS = 4
 
 
 def cell_references(a, b, h, origin, shape, margin):
@@ -62,15 +68,21 @@ def sorted_references(a, b, h, origin, shape, margin):
     second writes every reference straight to its place with the offset of
     its in-cell part along the cell's normal, the third sorts each cell's
     references by offset, a block of cells at a time.  Only the final tables
-    are ever held in full.
+    are ever held in full.  The chunks' work runs on a few threads
+    (:func:`ordered_map`); what they return is added and written in chunk
+    order, so the tables are the same bit for bit on any number of threads.
     """
     cell_count = int(shape[0] * shape[1])
     counts = np.zeros(cell_count, dtype=np.int64)
     doubled = np.zeros((2, cell_count))
-    for part in _chunks(len(a)):
+
+    def count(part):
         cells, piece = cell_references(a[part], b[part], h, origin, shape, margin)
-        counts += np.bincount(cells, minlength=cell_count)
-        doubled += doubled_angles(a[part], b[part], cells, piece, cell_count)
+        return np.bincount(cells, minlength=cell_count), doubled_angles(a[part], b[part], cells, piece, cell_count)
+
+    for chunk_counts, chunk_doubled in ordered_map(count, _chunks(len(a))):
+        counts += chunk_counts
+        doubled += chunk_doubled
     frames = empty_aligned((cell_count, 4), np.float32)
     frames[:, 0:2] = normals(doubled)
     frames[:, 2:] = 0.0
@@ -86,7 +98,9 @@ def sorted_references(a, b, h, origin, shape, margin):
     offsets = empty_aligned(total, np.float32)
     references[:1], offsets[:1] = 0, 0.0
     spread = np.zeros(cell_count)
-    for part in _chunks(len(a)):
+
+    def place(part):
+        """The chunk's references grouped by cell, each with its rank in its cell's run."""
         cells, piece = cell_references(a[part], b[part], h, origin, shape, margin)
         low, extent = offsets_in_cell((a[part] - origin) / h, (b[part] - origin) / h, cells, piece,
                                        normal, shape, margin)
@@ -94,16 +108,36 @@ def sorted_references(a, b, h, origin, shape, margin):
         cells = cells[order]
         runs = np.flatnonzero(np.r_[True, cells[1:] != cells[:-1]])  # start of each cell's run in the chunk
         first = np.repeat(runs, np.diff(np.r_[runs, len(cells)]))  # (a searchsorted of cells in itself: 5x slower)
-        destination = cursor[cells] + (np.arange(len(cells)) - first)
-        references[destination] = piece[order] + part.start
-        offsets[destination] = low[order]
-        run_cells = cells[runs]
-        spread[run_cells] = np.maximum(spread[run_cells], np.maximum.reduceat(extent[order], runs))
-        cursor += np.bincount(cells, minlength=cell_count)
+        return (cells, np.arange(len(cells)) - first, piece[order] + part.start, low[order], cells[runs],
+                np.maximum.reduceat(extent[order], runs), np.bincount(cells, minlength=cell_count))
+
+    for cells, rank, piece, low, run_cells, run_extent, chunk_counts in ordered_map(place, _chunks(len(a))):
+        destination = cursor[cells] + rank
+        references[destination] = piece
+        offsets[destination] = low
+        spread[run_cells] = np.maximum(spread[run_cells], run_extent)
+        cursor += chunk_counts
     # float32 offsets are rounded down (a lower bound never excludes a piece): widen the spread by an ulp
     frames[:, 2] = spread * (1.0 + 1e-6) + 1e-6
     _sort_cells_by_offset(references, offsets, cell_start)
     return references, offsets, frames, cell_start
+
+
+def ordered_map(function, items, threads: int | None = None):
+    """``function(item)`` for each of ``items`` on up to ``threads`` threads (default
+    :data:`BUILD_THREADS`, at most the cores), yielded in the items' order; at most twice as many results
+    as threads wait at a time, so memory stays a few chunks' worth."""
+    threads = max(1, min(threads or BUILD_THREADS, os.cpu_count() or 1))
+    items = iter(items)
+    if threads == 1:
+        yield from map(function, items)
+        return
+    with ThreadPoolExecutor(max_workers=threads) as pool:
+        pending = [pool.submit(function, item) for item in itertools.islice(items, 2 * threads)]
+        while pending:
+            result = pending.pop(0).result()
+            pending.extend(pool.submit(function, item) for item in itertools.islice(items, 1))
+            yield result
 
 
 def doubled_angles(a, b, cells, piece, cell_count):
@@ -155,20 +189,28 @@ def _sort_cells_by_offset(references, offsets, cell_start, block=1 << 22):
     One stable argsort of a uint64 key per block, the cell in the high half and the offset's float32
     bits made order-preserving in the low half: the order of ``np.lexsort((offsets, cell))``, in
     less time (the cells come in order, runs that the stable sort merges; the CD's tables 18 → 14 s).
+    The blocks are disjoint, so they sort on a few threads (:func:`ordered_map`).
     """
     starts = cell_start.astype(np.int64)
-    first_cell = 0
+    blocks, first_cell = [], 0
     while first_cell < len(starts) - 1:
         last_cell = int(np.searchsorted(starts, starts[first_cell] + block, side="right")) - 1
         last_cell = min(max(last_cell, first_cell + 1), len(starts) - 1)
-        lo, hi = starts[first_cell], starts[last_cell]
-        if hi > lo:
-            counts = np.diff(starts[first_cell:last_cell + 1])
-            cell = np.repeat(np.arange(len(counts), dtype=np.uint64), counts)
-            order = np.argsort((cell << np.uint64(32)) | _sortable_bits(offsets[lo:hi]), kind="stable")
-            references[lo:hi] = references[lo:hi][order]
-            offsets[lo:hi] = offsets[lo:hi][order]
+        if starts[last_cell] > starts[first_cell]:
+            blocks.append((first_cell, last_cell))
         first_cell = last_cell
+
+    def sort(cells):
+        first_cell, last_cell = cells
+        lo, hi = starts[first_cell], starts[last_cell]
+        counts = np.diff(starts[first_cell:last_cell + 1])
+        cell = np.repeat(np.arange(len(counts), dtype=np.uint64), counts)
+        order = np.argsort((cell << np.uint64(32)) | _sortable_bits(offsets[lo:hi]), kind="stable")
+        references[lo:hi] = references[lo:hi][order]
+        offsets[lo:hi] = offsets[lo:hi][order]
+
+    for _ in ordered_map(sort, blocks):
+        pass
 
 
 def _sortable_bits(values):

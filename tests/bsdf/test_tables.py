@@ -157,3 +157,45 @@ def test_each_cells_references_are_sorted_by_offset_as_a_float_comparison_orders
     refs._sort_cells_by_offset(sorted_references, sorted_offsets, cell_start, block=97)
     assert np.array_equal(sorted_references, references[expected])
     assert np.array_equal(sorted_offsets.view(np.uint32), offsets[expected].view(np.uint32))
+
+
+def test_the_threaded_build_gives_the_one_threads_tables_bit_for_bit(plate, monkeypatch):
+    """The reference passes and the per-cell sorts run on a few threads; their results are added and
+    written in chunk order, so the tables do not depend on the thread count (many small chunks here)."""
+    from scratch_iridescence.mitsuba_bridge.bsdf import references as refs
+
+    monkeypatch.setattr(refs, "CHUNK", 97)  # ~100 chunks of the plate's pieces, not one
+    built = {}
+    for threads in (1, 4):
+        monkeypatch.setattr(refs, "BUILD_THREADS", threads)
+        monkeypatch.setattr(refs.os, "cpu_count", lambda: 8)
+        tables = build_tables(plate)
+        built[threads] = [np.ascontiguousarray(getattr(tables, name)).tobytes()
+                          for name in ("segments", "references", "offsets", "cell_frames", "cell_start")]
+    assert built[1] == built[4]
+
+
+def test_ordered_map_keeps_the_order_loses_nothing_and_holds_a_few_results():
+    """Every item once, results in the items' order whatever the threads' timing, and at most twice as
+    many submitted-but-unread results as threads."""
+    import threading
+    import time
+
+    from scratch_iridescence.mitsuba_bridge.bsdf.references import ordered_map
+
+    rng = np.random.default_rng(2)
+    delays = rng.uniform(0, 2e-3, 101)
+    started, lock = [], threading.Lock()
+
+    def work(item):
+        with lock:
+            started.append(item)
+        time.sleep(delays[item])
+        return item * item
+
+    read = 0
+    for read, value in enumerate(ordered_map(work, range(101), threads=3), start=1):
+        assert value == (read - 1) ** 2
+        with lock:
+            assert len(started) - read <= 2 * 3
+    assert read == 101 and sorted(started) == list(range(101))
