@@ -128,10 +128,11 @@ def ordered_map(function, items, threads: int | None = None):
     :data:`BUILD_THREADS`, at most the cores), yielded in the items' order; at most twice as many results
     as threads wait at a time, so memory stays a few chunks' worth."""
     threads = max(1, min(threads or BUILD_THREADS, os.cpu_count() or 1))
-    items = iter(items)
-    if threads == 1:
+    items = list(items)
+    if threads == 1 or len(items) < 2:  # a stroke's few pieces: no pool to start
         yield from map(function, items)
         return
+    items = iter(items)
     with ThreadPoolExecutor(max_workers=threads) as pool:
         pending = [pool.submit(function, item) for item in itertools.islice(items, 2 * threads)]
         while pending:
