@@ -52,6 +52,7 @@ from .freezing import FrozenRender
 from .kernels import KernelCounter
 from .render import Progress, pass_seed
 from .scene import Camera, Film, RenderSettings, SceneDescription, ScratchedMetal, Shape
+from .variants import on_gpu
 
 __all__ = ["Session", "plan_pass", "strip_windows", "BATCH_SPP", "SINGLE_SAMPLE_PASSES", "CPU_STRIP_PIXELS"]
 
@@ -159,7 +160,7 @@ class Session:
             scene_dict["sensor-preview"] = builder.sensor_dict(description.camera, preview, self.settings)
         strip_pixels = self._strip_pixels
         if strip_pixels is None:
-            strip_pixels = 0 if mi.variant().startswith("cuda") else CPU_STRIP_PIXELS
+            strip_pixels = 0 if on_gpu() else CPU_STRIP_PIXELS
         self._windows = strip_windows(description.film, strip_pixels)
         if len(self._windows) > 1:
             camera, film = builder.window_camera(description.camera, description.film, self._windows[0])

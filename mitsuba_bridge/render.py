@@ -184,13 +184,14 @@ def render_chunks(scene, chunks: Iterable[Chunk], spp_total: int, *, freeze: boo
     would share the same cores.
     """
     from .freezing import FrozenRender
+    from .variants import on_gpu
 
     chunks = list(chunks)
     indices = [chunk.index for chunk in chunks]
     if indices and indices != list(range(indices[0], indices[0] + len(indices))):
         raise ValueError("render_chunks needs consecutive chunks of one schedule (the sums follow their indices)")
     if overlap is None:
-        overlap = _on_gpu()
+        overlap = on_gpu()
     passes = FrozenRender(enabled=freeze)
     sums, done, start = PairwiseSum(chunks[0].index if chunks else 0), 0, time.perf_counter()
     launched = None  # the next chunk's image, already launched (overlap)
@@ -207,12 +208,6 @@ def render_chunks(scene, chunks: Iterable[Chunk], spp_total: int, *, freeze: boo
         done += chunk.spp
         yield Progress(number, done, spp_total, time.perf_counter() - start, chunk, sums, sums.partials(),
                        traced_because=passes.failure)
-
-
-def _on_gpu() -> bool:
-    import mitsuba as mi
-
-    return mi.variant().startswith("cuda")
 
 
 def render_passes(scene, spp: int, *, seed: int = 0) -> Iterator[Progress]:

@@ -9,10 +9,17 @@ from __future__ import annotations
 from . import llvm_library
 from .errors import ScratchUserError
 
-__all__ = ["SPECTRAL_VARIANTS", "VariantError", "choose_variant", "activate"]
+__all__ = ["SPECTRAL_VARIANTS", "VariantError", "choose_variant", "activate", "on_gpu"]
 
 #: In order of preference for ``"auto"``.
 SPECTRAL_VARIANTS = ("cuda_ad_spectral", "llvm_ad_spectral")
+
+
+def on_gpu() -> bool:
+    """Whether the active Mitsuba variant renders on an NVIDIA GPU (CUDA) rather than the CPU."""
+    import mitsuba as mi
+
+    return mi.variant().startswith("cuda")
 
 
 class VariantError(ScratchUserError, RuntimeError):
