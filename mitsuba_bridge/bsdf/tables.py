@@ -56,7 +56,7 @@ import numpy as np
 from ..scratch import Profile, ScratchSet, subdivide
 from .crossings import find_crossings
 from .references import (CHUNK, aligned, cell_references, doubled_angles, empty_aligned, expand, normals,
-                         offsets_in_cell, sorted_references)
+                         offsets_in_cell, ordered_map, sorted_references)
 
 __all__ = ["GridTables", "build_tables", "build_constants", "aligned", "cell_references", "TARGET_PER_CELL",
            "MAX_PIECE_UV"]
@@ -210,18 +210,25 @@ def continuations(a, b, segments) -> np.ndarray:
     sorted_keys = start_keys[order]
     del start_keys
     successor = np.full(count, -1, np.int64)
-    for first in range(0, count, CHUNK):  # chunks of ends bound the temporaries
+
+    def joins(first):
+        """(piece, the piece its groove runs straight on into) for the ends of one chunk of pieces."""
         mine = np.arange(first, min(first + CHUNK, count))
         end_keys = keys(b[mine])
         at = np.minimum(np.searchsorted(sorted_keys, end_keys), count - 1)
         follower = order[at]
         e, e_next = b[mine] - a[mine], b[follower] - a[follower]
         size = np.hypot(e[:, 0], e[:, 1]) * np.hypot(e_next[:, 0], e_next[:, 1])
-        straight = ((np.abs(e[:, 0] * e_next[:, 1] - e[:, 1] * e_next[:, 0]) < STRAIGHT_ON_SIN * np.maximum(size, 1e-300))
-                    & (np.einsum("ij,ij->i", e, e_next) > 0))
+        sine_times_size = np.abs(e[:, 0] * e_next[:, 1] - e[:, 1] * e_next[:, 0])
+        forward = np.einsum("ij,ij->i", e, e_next) > 0
+        straight = (sine_times_size < STRAIGHT_ON_SIN * np.maximum(size, 1e-300)) & forward
         same = (segments[mine, 6] == segments[follower, 6]) & (segments[mine, 7] == segments[follower, 7])
         joined = (sorted_keys[at] == end_keys) & straight & same & (follower != mine)
-        successor[mine[joined]] = follower[joined]
+        return mine[joined], follower[joined]
+
+    # chunks of ends bound the temporaries; each writes its own pieces' successors
+    for pieces, followers in ordered_map(joins, range(0, count, CHUNK)):
+        successor[pieces] = followers
     del order, sorted_keys
     length = np.hypot(*(b - a).T)
     predecessor = np.full(count, -1, np.int64)
@@ -265,12 +272,13 @@ def _pieces(scratches: ScratchSet):
 
     Width and depth come from the noise (``subdivide``); pieces that cannot
     scatter (zero width, depth or length) are dropped; V-grooves carry a
-    negative depth.  Chunks of scratches bound the temporaries of ``subdivide``.
+    negative depth.  Chunks of whole scratches (:func:`_scratch_chunks`) bound the temporaries of
+    ``subdivide`` and run on a few threads; every scratch's pieces depend on that scratch alone, and
+    the chunks are joined in order, so the pieces are those of one pass over the set.
     """
-    parts = []
-    for start in range(0, scratches.count, CHUNK):
-        chunk = scratches if scratches.count <= CHUNK else \
-            scratches.select(np.arange(start, min(start + CHUNK, scratches.count)))
+    def pieces_of(rows):
+        whole = rows.stop - rows.start == scratches.count
+        chunk = scratches if whole else scratches.select(np.arange(rows.start, rows.stop))
         segments = subdivide(chunk)
         keep = (segments.width > 0) & (segments.depth > 0) & np.any(segments.a != segments.b, axis=1)
         signed = np.where(segments.profile == Profile.TRIANGULAR, -segments.depth, segments.depth)
@@ -278,12 +286,24 @@ def _pieces(scratches: ScratchSet):
         signed_depth_um = (signed[keep] * M_TO_UM).astype(np.float32)
         piece = (segments.a[keep], segments.b[keep], width_um, signed_depth_um)
         del segments, keep, signed
-        parts.append(_split(piece, MAX_PIECE_UV))
+        return _split(piece, MAX_PIECE_UV)
+
+    parts = list(ordered_map(pieces_of, _scratch_chunks(scratches)))
     if not parts:
         return np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0, np.float32), np.zeros(0, np.float32)
     if len(parts) == 1:
         return parts[0]
     return tuple(np.concatenate([p[i] for p in parts]) for i in range(4))
+
+
+def _scratch_chunks(scratches: ScratchSet, vertices: int = 4 * CHUNK) -> list[range]:
+    """Runs of whole scratches of about ``vertices`` vertices and at most CHUNK scratches each."""
+    count = scratches.count
+    offsets = np.asarray(scratches.offsets, np.int64)
+    by_vertices = np.searchsorted(offsets, np.arange(vertices, int(offsets[-1]), vertices)) if count else []
+    bounds = np.unique(np.r_[0, np.clip(by_vertices, 1, count), np.arange(CHUNK, count, CHUNK), count]
+                       .astype(np.int64)) if count else np.zeros(1, np.int64)
+    return [range(int(lo), int(hi)) for lo, hi in zip(bounds[:-1], bounds[1:])]
 
 
 def _power_of_two(value: float) -> float:

@@ -160,19 +160,25 @@ def test_each_cells_references_are_sorted_by_offset_as_a_float_comparison_orders
 
 
 def test_the_threaded_build_gives_the_one_threads_tables_bit_for_bit(plate, monkeypatch):
-    """The reference passes and the per-cell sorts run on a few threads; their results are added and
-    written in chunk order, so the tables do not depend on the thread count (many small chunks here)."""
+    """The pieces (chunks of whole scratches), the continuations, the reference passes and the per-cell
+    sorts run on a few threads; their results are joined, added and written in chunk order, so the
+    tables depend neither on the thread count nor on the chunk size (here: one chunk against ~100)."""
     from scratch_iridescence.mitsuba_bridge.bsdf import references as refs
+    from scratch_iridescence.mitsuba_bridge.bsdf import tables as tables_module
 
-    monkeypatch.setattr(refs, "CHUNK", 97)  # ~100 chunks of the plate's pieces, not one
-    built = {}
-    for threads in (1, 4):
+    def build(chunk, threads):
+        monkeypatch.setattr(refs, "CHUNK", chunk)
+        monkeypatch.setattr(tables_module, "CHUNK", chunk)
         monkeypatch.setattr(refs, "BUILD_THREADS", threads)
         monkeypatch.setattr(refs.os, "cpu_count", lambda: 8)
+        assert len(tables_module._scratch_chunks(plate)) == (1 if chunk > 10_000 else 400 // chunk + 1)
         tables = build_tables(plate)
-        built[threads] = [np.ascontiguousarray(getattr(tables, name)).tobytes()
-                          for name in ("segments", "references", "offsets", "cell_frames", "cell_start")]
-    assert built[1] == built[4]
+        return [np.ascontiguousarray(getattr(tables, name)).tobytes()
+                for name in ("segments", "references", "offsets", "cell_frames", "cell_start", "continuation")]
+
+    one = build(1 << 16, 1)
+    assert build(3, 4) == one  # 134 chunks of 3 scratches (~12 vertices: each of its own vertex budget)
+    assert build(97, 4) == one and build(97, 1) == one
 
 
 def test_ordered_map_keeps_the_order_loses_nothing_and_holds_a_few_results():
