@@ -275,7 +275,8 @@ def _benchmarks(figures, records: dict) -> str:
         if r["paper_per_core_s"]:
             paper = f"{r['paper_minutes']:g} min" + ("" if r["paper_mp"] == 4.0 else f" ({r['paper_mp']:g} MP)")
             ratio = r["per_core_s"] / r["paper_per_core_s"]
-            versus = f"{r['paper_per_core_s']:.3g} | {ratio:.2g}× | {ratio / 4:.2f}×"
+            shown = f"{ratio:.0f}" if ratio >= 10 else f"{ratio:.2g}"  # (.2g writes 102 as 1e+02)
+            versus = f"{r['paper_per_core_s']:.3g} | {shown}× | {ratio / 4:.2f}×"
         else:
             paper, versus = "—", "— | — | —"
         relative = f"{r['per_core_s'] / r['reference']['samples_per_core_s']:.3f}" if r["reference"] else "—"
