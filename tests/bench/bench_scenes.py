@@ -42,7 +42,11 @@ def export(folder: Path, only: list[str]) -> None:
     from scratch_iridescence.scenes import paper
 
     folder.mkdir(parents=True, exist_ok=True)
-    bpy = paper._start_blender()
+    import bpy
+
+    from scratch_iridescence import register  # the add-on, as Blender enables it
+
+    register()
     index = []
     for module, figure in paper.figures(only or None):
         for render in figure.renders:
@@ -70,6 +74,7 @@ def block_means(image: np.ndarray) -> np.ndarray:
 
 def render_folders(folders: list[Path], args) -> list[dict]:
     from scratch_iridescence.mitsuba_bridge import batch, render
+    from scratch_iridescence.mitsuba_bridge.export import load_folder
     from scratch_iridescence.mitsuba_bridge.output import write_image
     from scratch_iridescence.mitsuba_bridge.schedule import sample_schedule
     from scratch_iridescence.mitsuba_bridge.variants import activate
@@ -91,7 +96,7 @@ def render_folders(folders: list[Path], args) -> list[dict]:
         name = folder.name
         try:
             began = time.perf_counter()
-            scene, _ = batch._load(folder)
+            scene = load_folder(folder)
             load_s = time.perf_counter() - began
             width, height = (int(c) for c in scene.sensors()[0].film().crop_size())
             pixels = width * height
