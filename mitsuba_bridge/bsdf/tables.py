@@ -296,13 +296,15 @@ def _pieces(scratches: ScratchSet):
     return tuple(np.concatenate([p[i] for p in parts]) for i in range(4))
 
 
-def _scratch_chunks(scratches: ScratchSet, vertices: int = 4 * CHUNK) -> list[range]:
-    """Runs of whole scratches of about ``vertices`` vertices and at most CHUNK scratches each."""
+def _scratch_chunks(scratches: ScratchSet) -> list[range]:
+    """Runs of whole scratches of about 4 × CHUNK vertices and at most CHUNK scratches each."""
     count = scratches.count
+    if count == 0:
+        return []
     offsets = np.asarray(scratches.offsets, np.int64)
-    by_vertices = np.searchsorted(offsets, np.arange(vertices, int(offsets[-1]), vertices)) if count else []
-    bounds = np.unique(np.r_[0, np.clip(by_vertices, 1, count), np.arange(CHUNK, count, CHUNK), count]
-                       .astype(np.int64)) if count else np.zeros(1, np.int64)
+    vertices = 4 * CHUNK
+    by_vertices = np.searchsorted(offsets, np.arange(vertices, int(offsets[-1]), vertices))
+    bounds = np.unique(np.r_[0, np.clip(by_vertices, 1, count), np.arange(CHUNK, count, CHUNK), count])
     return [range(int(lo), int(hi)) for lo, hi in zip(bounds[:-1], bounds[1:])]
 
 

@@ -177,7 +177,7 @@ def test_the_threaded_build_gives_the_one_threads_tables_bit_for_bit(plate, monk
                 for name in ("segments", "references", "offsets", "cell_frames", "cell_start", "continuation")]
 
     one = build(1 << 16, 1)
-    assert build(3, 4) == one  # 134 chunks of 3 scratches (~12 vertices: each of its own vertex budget)
+    assert build(3, 4) == one  # 134 chunks of 3 scratches (12 vertices: both budgets cut alike)
     assert build(97, 4) == one and build(97, 1) == one
 
 
