@@ -80,7 +80,7 @@ def render_command(args) -> int:
     from .parts import RenderIdentity, scene_fingerprint, schedule_digest, software, write_part
     from .render import Refresh, render_chunks
     from .schedule import part_range, sample_schedule
-    from .variants import VariantError, activate
+    from .variants import VariantError, activate, on_gpu
 
     if args.spp is not None and args.spp < 1:
         raise CommandError(f"--spp must be at least 1 (leave it out for the scene's own), got {args.spp}", 2)
@@ -106,7 +106,7 @@ def render_command(args) -> int:
     spp = args.spp or int(sensors[0].sampler().sample_count())
     width, height = (int(c) for c in sensors[0].film().crop_size())
     try:
-        chunks = sample_schedule(spp, width * height, args.seed)
+        chunks = sample_schedule(spp, width * height, args.seed, gpu=on_gpu())
     except ValueError as error:
         raise CommandError(str(error), 2) from None
     selected = chunks

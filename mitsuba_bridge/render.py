@@ -213,15 +213,17 @@ def render_chunks(scene, chunks: Iterable[Chunk], spp_total: int, *, freeze: boo
 def render_passes(scene, spp: int, *, seed: int = 0) -> Iterator[Progress]:
     """Render ``scene`` with ``spp`` samples per pixel chunk by chunk, yielding the running mean after each.
 
-    The chunks are :func:`sample_schedule` ``(spp, pixels, seed)``.  Stop
+    The chunks are :func:`sample_schedule` ``(spp, pixels, seed)`` (its GPU schedule on a CUDA variant).  Stop
     iterating to cancel: no work is left behind.  Raises
     :class:`~mitsuba_bridge.footprint.NotEnoughMemory` (before rendering) when
     the estimated memory exceeds what is free.
     """
     if spp < 1:
         raise ValueError("spp must be at least 1")
+    from .variants import on_gpu
+
     width, height = (int(c) for c in scene.sensors()[0].film().crop_size())
-    chunks = sample_schedule(spp, width * height, seed)
+    chunks = sample_schedule(spp, width * height, seed, gpu=on_gpu())
     check_memory(width, height, chunks)  # before any film is allocated
     return render_chunks(scene, chunks, spp)
 

@@ -20,7 +20,14 @@ machine or spread over many (``--chunk K/N`` and ``merge`` on the command line).
   otherwise blocks that are multiples of its SIMD width (4, 8 or 16).  A
   pixel's samples are consecutive, so they stay in one block when the chunk's
   spp is at most 4, or when it divides 16 384 and the call is large (full
-  chunks: more than 2**21 samples, large for up to 64 threads).
+  chunks: more than 2**21 samples, large for up to 64 threads).  On a GPU
+  (``gpu=True``) a full chunk takes at most :data:`GPU_CHUNK_SPP` samples per
+  pixel: a pixel's samples are then neighbouring lanes of one 32-lane warp,
+  whose additions to one pixel are combined before the warp's single atomic
+  add; a pixel spread over several warps gets their atomic adds in whatever
+  order they ran (measured on an H200: docs/rendering.md).  The schedule is
+  then another one (its digest differs), and split renders merge only parts
+  of one variant anyway.
 * **Seeds.**  Chunk ``i`` uses :func:`pass_seed` ``(seed, i)``: distinct
   32-bit seeds, so chunks draw independent samples.
 * **Sum.**  Chunk ``i`` contributes ``float64(image_i) × spp_i`` (exact: a
@@ -38,7 +45,7 @@ from typing import Callable
 
 import numpy as np
 
-__all__ = ["MAX_SAMPLES_PER_PASS", "MAX_CHUNKS", "SMALL_CHUNK_SPP", "ScheduleError", "Chunk", "Node",
+__all__ = ["MAX_SAMPLES_PER_PASS", "MAX_CHUNKS", "SMALL_CHUNK_SPP", "GPU_CHUNK_SPP", "ScheduleError", "Chunk", "Node",
            "sample_schedule", "chunk_spp", "pass_seed", "part_range", "tree_nodes", "tree_sum", "root", "PairwiseSum"]
 
 #: Samples in flight per ``mi.render`` call; beyond this LLVM and CUDA only use more memory.
@@ -47,6 +54,8 @@ MAX_SAMPLES_PER_PASS = 1 << 22
 MAX_CHUNKS = 1 << 20
 #: Chunks this small never split a pixel between threads (Dr.Jit's narrowest SIMD packet holds 4 samples).
 SMALL_CHUNK_SPP = 4
+#: On a GPU, full chunks take at most this many spp: a pixel's samples stay in one 32-lane warp.
+GPU_CHUNK_SPP = 32
 #: Dr.Jit's LLVM work block (``jit_llvm_block_size``): full chunks take at most this many spp.
 _BLOCK_SAMPLES = 16384
 #: Calls above this hand out whole 16 384-sample blocks on machines with up to 64 threads.
@@ -87,21 +96,24 @@ def pass_seed(seed: int, index: int) -> int:
     return (int(seed) * 0x9E3779B1 + int(index)) & 0xFFFFFFFF
 
 
-def chunk_spp(pixels: int) -> int:
+def chunk_spp(pixels: int, *, gpu: bool = False) -> int:
     """Samples per pixel of a full chunk of a ``pixels``-pixel film (see the module docstring).
 
     The largest power of two ``s ≤ 16 384`` with ``pixels × s ≤ MAX_SAMPLES_PER_PASS``;
     when that call would still hold no more than :data:`_LARGE_CALL_SAMPLES`
-    samples (films under 129 pixels), :data:`SMALL_CHUNK_SPP`.
+    samples (films under 129 pixels), :data:`SMALL_CHUNK_SPP`.  ``gpu``: at most
+    :data:`GPU_CHUNK_SPP` instead (a pixel in one warp; CUDA has no CPU threads' blocks).
     """
     budget = max(1, MAX_SAMPLES_PER_PASS // max(int(pixels), 1))
     full = min(1 << (budget.bit_length() - 1), _BLOCK_SAMPLES)
+    if gpu:
+        return min(full, GPU_CHUNK_SPP)
     if full > SMALL_CHUNK_SPP and int(pixels) * full <= _LARGE_CALL_SAMPLES:
         return SMALL_CHUNK_SPP
     return full
 
 
-def sample_schedule(spp: int, pixels: int, seed: int = 0) -> list[Chunk]:
+def sample_schedule(spp: int, pixels: int, seed: int = 0, *, gpu: bool = False) -> list[Chunk]:
     """The chunks of a render of ``spp`` samples per pixel over ``pixels`` pixels.
 
     Parameters
@@ -112,6 +124,9 @@ def sample_schedule(spp: int, pixels: int, seed: int = 0) -> list[Chunk]:
         Pixels of the rendered film (the crop window's width × height).
     seed : int
         The user's seed; each chunk gets its own seed derived from it.
+    gpu : bool
+        The schedule of a GPU (CUDA) render: full chunks of at most
+        :data:`GPU_CHUNK_SPP` spp (:func:`chunk_spp`).
 
     Returns
     -------
@@ -125,13 +140,15 @@ def sample_schedule(spp: int, pixels: int, seed: int = 0) -> list[Chunk]:
     [16, 16, 16, 16, 16, 16, 4]
     >>> [c.spp for c in sample_schedule(4096 + 11, 32 * 24)]
     [4096, 4, 4, 2, 1]
+    >>> [c.spp for c in sample_schedule(100, 32 * 24, gpu=True)]
+    [32, 32, 32, 4]
     """
     spp, pixels = int(spp), int(pixels)
     if spp < 1:
         raise ScheduleError(f"spp must be at least 1, got {spp}")
     if pixels < 1:
         raise ScheduleError(f"the film must have at least one pixel, got {pixels}")
-    full = chunk_spp(pixels)
+    full = chunk_spp(pixels, gpu=gpu)
     count = spp // full + (spp % full) // SMALL_CHUNK_SPP + 2
     if count > MAX_CHUNKS:
         raise ScheduleError(f"{spp:,} spp over {pixels:,} pixels would take {count - 2:,} or more render calls "

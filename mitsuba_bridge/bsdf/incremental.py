@@ -31,8 +31,8 @@ import numpy as np
 from ..scratch import ScratchSet
 from .crossings import extend_crossings, pairs_of
 from .references import CHUNK, cell_references, doubled_angles, empty_aligned, normals, offsets_in_cell
-from .tables import (GridTables, _cells, _no_crossings, _pieces, _reference_limit, _segment_rows, build_sorted,
-                     continuations)
+from .tables import (GridTables, _cells, _no_crossings, _pieces, _reference_limit, _segment_rows, box_lattice,
+                     build_sorted, continuations, end_keys)
 
 __all__ = ["TableCache", "update_tables", "MAX_CACHED_PIECES"]
 
@@ -101,6 +101,33 @@ def _appends(old: ScratchSet, new: ScratchSet) -> bool:
         return False
     return all(np.array_equal(getattr(new, name)[:n], getattr(old, name))
                for name in ("width", "depth", "profile", "width_variation", "depth_variation", "seed"))
+
+
+def _extended_continuations(previous: TableCache, a, b, segments, old_index, new_index, lattice) -> np.ndarray:
+    """:func:`.tables.continuations` of the merged pieces: the old runs renumbered and the new pieces'
+    own, unless an end of a new piece meets an end of an old one (then all of them again).
+
+    Exact: the merged set has the old set's box (the extension's condition), hence its lattice, and
+    equal starts are taken in piece order, which the merge keeps."""
+    old = previous.tables.continuation
+    if old is None:
+        return continuations(a, b, segments, lattice)
+    na, nb = a[new_index], b[new_index]
+    # only old ends within a lattice step of the new pieces' box can share a key with theirs
+    points = np.concatenate([na, nb])
+    low, high = points.min(axis=0) - 2.0 * lattice[1], points.max(axis=0) + 2.0 * lattice[1]
+
+    def keys_near(ends):
+        near = np.all((ends >= low) & (ends <= high), axis=1)
+        return end_keys(ends[near], lattice)
+
+    if (np.isin(end_keys(na, lattice), keys_near(previous.b)).any()
+            or np.isin(end_keys(nb, lattice), keys_near(previous.a)).any()):
+        return continuations(a, b, segments, lattice)
+    result = np.empty((len(a), 2), np.float32)
+    result[old_index] = old[:len(old_index)]
+    result[new_index] = continuations(na, nb, segments[new_index], lattice)
+    return result
 
 
 def _extend(previous: TableCache, scratches: ScratchSet) -> TableCache | None:
@@ -199,7 +226,8 @@ def _extend(previous: TableCache, scratches: ScratchSet) -> TableCache | None:
                         cell_start=cell_start, origin=old.origin, cell_size=h, shape=old.shape,
                         piece_count=n_old + n_new, margin=margin, crossing_start=crossing_start,
                         crossing_partner=crossing_partner, crossing_along=crossing_along,
-                        continuation=continuations(a, b, segments))
+                        continuation=_extended_continuations(previous, a, b, segments, old_index, new_index,
+                                                             box_lattice(lo, hi)))
     if len(a) > MAX_CACHED_PIECES:
         a = b = None
     return TableCache(scratches, tables, a, b, previous.cell_size_hint, previous.crossings, True)

@@ -185,28 +185,43 @@ def build_sorted(scratches: ScratchSet, cell_size: float = 0.0, crossings: bool 
 STRAIGHT_ON_SIN = 1e-6
 
 
-def continuations(a, b, segments) -> np.ndarray:
+def end_lattice(a, b) -> tuple[np.ndarray, float]:
+    """``(lo, step)`` of the lattice :func:`continuations` matches piece ends on: 2⁻³⁰ of the pieces' extent."""
+    return box_lattice(np.minimum(a.min(axis=0), b.min(axis=0)), np.maximum(a.max(axis=0), b.max(axis=0)))
+
+
+def box_lattice(lo, hi) -> tuple[np.ndarray, float]:
+    """:func:`end_lattice` of pieces whose ends span the box ``[lo, hi]`` (both (2,) arrays)."""
+    return lo, max(float(np.max(hi - lo)), 1e-30) / float(1 << 30)
+
+
+def end_keys(points, lattice) -> np.ndarray:
+    """int64 key of each point's lattice cell (:func:`end_lattice`): equal keys, meeting ends."""
+    lo, step = lattice
+    q = np.floor((points - lo) / step).astype(np.int64)
+    return (q[:, 0] << 31) | q[:, 1]
+
+
+def continuations(a, b, segments, lattice=None) -> np.ndarray:
     """``(N, 2)`` float32: per piece, how far (UV) its groove runs on straight before its start and after
     its end, through pieces of the same width and depth that meet it end to start (0: it ends or turns).
 
     Long pieces are split (``MAX_PIECE_UV``) and polylines may run straight on: a periodic family
     (:mod:`.periodic`) then knows that a track listed in a cell by one piece goes on past that piece's
     end.  Ends meet in float64 to the last bit or so; they are matched on a lattice of 2⁻³⁰ of the
-    extent, and the runs summed by pointer doubling."""
+    extent (``lattice``: that of a larger set these pieces belong to, :func:`end_lattice`), and the runs
+    summed by pointer doubling."""
     count = len(a)
     result = np.zeros((count, 2), np.float32)
     if count < 2:
         return result
-    lo = np.minimum(a.min(axis=0), b.min(axis=0))
-    extent = float(np.max(np.maximum(a.max(axis=0), b.max(axis=0)) - lo))
-    step = max(extent, 1e-30) / float(1 << 30)
+    lattice = end_lattice(a, b) if lattice is None else lattice
 
     def keys(points):
-        q = np.floor((points - lo) / step).astype(np.int64)
-        return (q[:, 0] << 31) | q[:, 1]
+        return end_keys(points, lattice)
 
     start_keys = keys(a)
-    order = np.argsort(start_keys)
+    order = np.argsort(start_keys, kind="stable")  # equal starts by piece: an extension keeps the choice
     sorted_keys = start_keys[order]
     del start_keys
     successor = np.full(count, -1, np.int64)

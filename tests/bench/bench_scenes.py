@@ -77,7 +77,7 @@ def render_folders(folders: list[Path], args) -> list[dict]:
     from scratch_iridescence.mitsuba_bridge.export import load_folder
     from scratch_iridescence.mitsuba_bridge.output import write_image
     from scratch_iridescence.mitsuba_bridge.schedule import sample_schedule
-    from scratch_iridescence.mitsuba_bridge.variants import activate
+    from scratch_iridescence.mitsuba_bridge.variants import activate, on_gpu
 
     variant = activate(args.variant)
     out = Path(args.out) if args.out else None
@@ -88,7 +88,7 @@ def render_folders(folders: list[Path], args) -> list[dict]:
     def timed_render(scene, spp, pixels):
         began = time.perf_counter()
         progress = None
-        for progress in render.render_chunks(scene, sample_schedule(spp, pixels, args.seed), spp):
+        for progress in render.render_chunks(scene, sample_schedule(spp, pixels, args.seed, gpu=on_gpu()), spp):
             pass
         return time.perf_counter() - began, progress
 

@@ -1,13 +1,20 @@
-"""Bridge fixtures: the LLVM spectral variant (the CI machine has no GPU) and small scenes built in code."""
+"""Bridge fixtures: the LLVM spectral variant (the CI machine has no GPU) and small scenes built in code.
+
+``SCRATCH_TEST_VARIANT=cuda_ad_spectral`` runs them on an NVIDIA GPU instead (docs/bsdf.md, GPU), as
+for ``tests/bsdf``.
+"""
+import os
+
 import pytest
 
 mi = pytest.importorskip("mitsuba")
 
+VARIANT = os.environ.get("SCRATCH_TEST_VARIANT", "llvm_ad_spectral")
+
 
 @pytest.fixture(scope="session")
 def variant():
-    """``llvm_ad_spectral`` with the project's plugins registered."""
+    """The test variant (``llvm_ad_spectral`` unless told otherwise) with the project's plugins registered."""
     from scratch_iridescence.mitsuba_bridge import variants
 
-    return variants.activate("llvm_ad_spectral")
-
+    return variants.activate(VARIANT)

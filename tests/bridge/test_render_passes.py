@@ -7,6 +7,7 @@ import pytest
 from bridge_scenes import interrupting_scene, simple_scene
 from scratch_iridescence.mitsuba_bridge import builder, freezing, render, schedule
 from scratch_iridescence.mitsuba_bridge import scene as S
+from scratch_iridescence.mitsuba_bridge.variants import on_gpu
 
 
 def spy_on_chunks(monkeypatch, around):
@@ -36,6 +37,21 @@ def test01_schedule_adds_up_to_spp_in_power_of_two_chunks_within_the_memory_boun
     assert [c.spp for c in schedule.sample_schedule(4096 + 67, 32 * 24)] == [4096] + [4] * 16 + [2, 1]
     assert [c.spp for c in schedule.sample_schedule(64, 2 * 2)] == [4] * 16  # a tiny film: small chunks only
     assert schedule.sample_schedule(5, 4096 * 4096) == schedule.sample_schedule(5, 4096 * 4096)
+
+
+def test01b_the_gpu_schedule_keeps_a_pixel_in_one_warp():
+    """On a GPU full chunks take at most 32 spp (one warp; docs/rendering.md); large films keep their chunks."""
+    for spp in (1, 7, 64, 100, 1000, 4097):
+        for pixels in (1, 768, 512 * 512, 1920 * 1080, 10_000 ** 2):
+            sizes = [c.spp for c in schedule.sample_schedule(spp, pixels, seed=3, gpu=True)]
+            assert sum(sizes) == spp and sizes == sorted(sizes, reverse=True)
+            assert all(size & (size - 1) == 0 and size <= schedule.GPU_CHUNK_SPP for size in sizes)
+            assert all(size * pixels <= max(schedule.MAX_SAMPLES_PER_PASS, pixels) for size in sizes)
+            assert set(sizes) <= {sizes[0], 4, 2, 1}
+            if pixels >= 512 * 512:  # chunks of 16 spp or fewer: the CPU's schedule
+                assert sizes == [c.spp for c in schedule.sample_schedule(spp, pixels, seed=3)]
+    assert [c.spp for c in schedule.sample_schedule(4096 + 67, 32 * 24, gpu=True)] == [32] * 130 + [2, 1]
+    assert [c.spp for c in schedule.sample_schedule(64, 2 * 2, gpu=True)] == [32, 32]
 
 
 def test02_schedule_refuses_what_cannot_be_rendered():
@@ -102,8 +118,9 @@ def lit_scene(variant):
 
 def test06_chunks_add_up_to_the_requested_samples_and_report_progress(lit_scene):
     steps = list(render.render_passes(lit_scene, 37))
-    assert [p.spp_done for p in steps] == list(range(4, 37, 4)) + [37] and steps[-1].finished  # 9 x 4 + 1
-    assert steps[0].fraction == pytest.approx(4 / 37)
+    first = 32 if on_gpu() else 4  # the GPU's schedule: [32, 4, 1]; the CPU's small film: 9 x 4 + 1
+    assert [p.spp_done for p in steps] == list(range(first, 37, 4)) + [37] and steps[-1].finished
+    assert steps[0].fraction == pytest.approx(first / 37)
     assert steps[-1].image.shape == (24, 32, 4) and steps[-1].image.dtype == np.float32
 
 
@@ -137,7 +154,7 @@ def test09_stopping_the_iteration_cancels_without_rendering_further(lit_scene, m
     for progress in render.render_passes(lit_scene, 100_000):
         if progress.index == 2:
             break
-    assert len(count) == 2
+    assert len(count) == (3 if on_gpu() else 2)  # on a GPU chunk 3 is already launched (overlap, test11b)
 
 
 def test10_a_tiny_film_renders_the_same_bits_every_time(variant):
@@ -155,10 +172,10 @@ def test11_the_image_is_the_same_bit_for_bit_whatever_the_timing(lit_scene, monk
     """Slow and uneven chunks (a busy machine) and a display refreshed at other moments change nothing."""
     spp = 4096 + 7  # several chunks of several sizes
     quiet = render.render_image(lit_scene, spp, seed=11)
-    delays = iter(np.random.default_rng(1).uniform(0, 0.05, 100))
+    delays = np.random.default_rng(1)
 
     def busy(render_call, spp, seed):
-        time.sleep(next(delays))
+        time.sleep(delays.uniform(0, 0.05))
         return render_call()
 
     spy_on_chunks(monkeypatch, busy)
@@ -174,7 +191,7 @@ def test11b_overlapped_chunks_give_the_same_image_and_leave_one_pass_in_flight_w
     """``overlap`` (the GPU's default) launches chunk k + 1 once chunk k's image is on the host: the same
     images bit for bit; stopping after chunk 2 has launched chunk 3 and nothing more, and a render after
     that is unharmed."""
-    chunks = schedule.sample_schedule(4096 + 7, 32 * 24, 3)
+    chunks = schedule.sample_schedule(4096 + 7, 32 * 24, 3, gpu=on_gpu())
     plain = [p.image for p in render.render_chunks(lit_scene, chunks, 4096 + 7, overlap=False)]
     overlapped = [p.image for p in render.render_chunks(lit_scene, chunks, 4096 + 7, overlap=True)]
     assert len(overlapped) == len(plain) > 3

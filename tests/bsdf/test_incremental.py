@@ -9,7 +9,7 @@ from scratch_iridescence.mitsuba_bridge.bsdf.tables import build_tables
 from scratch_iridescence.mitsuba_bridge.scratch import ScratchSet
 
 ARRAYS = ("segments", "references", "offsets", "cell_frames", "cell_start", "crossing_start", "crossing_partner",
-          "crossing_along")
+          "crossing_along", "continuation")
 
 
 def plate(count, seed, region=((0.05, 0.05), (0.95, 0.95))):
@@ -109,3 +109,40 @@ def test_switching_the_crossings_option_is_a_full_build():
     back = update_tables(update_tables(None, scratches, crossings=True), stroke)
     assert not back.incremental and back.tables.crossing_count == 0
     assert_same(back.tables, build_tables(stroke))
+
+
+def test_continuations_of_strokes_equal_a_fresh_builds_where_a_stroke_runs_on_from_a_scratch(monkeypatch):
+    """How far each groove runs straight on (``continuation``): the old pieces' runs are kept and a
+    stroke's own found, unless a stroke's end meets an old piece's end (then all are found again); either
+    way a fresh build's, bit for bit."""
+    def even(count, seed, region):  # no width or depth noise: the pieces of a scratch join
+        return scratch.random_scratches(count, seed=seed, width=scratch.Constant(2e-6), depth=scratch.Constant(2e-7),
+                                        length=(0.05, 0.1), region=region)
+
+    scratches = even(300, 11, ((0.3, 0.3), (0.7, 0.7)))
+    cache = update_tables(None, scratches)
+    kept = cache.tables.cell_size
+    assert np.count_nonzero(cache.tables.continuation) > 0
+    inner = np.all((scratches.uv > 0.4) & (scratches.uv < 0.6), axis=1).reshape(-1, 2).all(axis=1)
+    one = scratches.select(np.flatnonzero(inner)[:1])  # far inside the grid's box: strokes from it extend
+    start, end = one.uv[0], one.uv[-1]
+    strokes = (
+        dataclasses.replace(one, uv=np.array([end, end + 0.2 * (end - start)])),  # on from its end
+        dataclasses.replace(one, uv=np.array([start, start + [0.05, 0.02]])),  # from its start, elsewhere
+        dataclasses.replace(one, uv=np.array([start - 0.2 * (end - start), start])),  # into both starts
+        even(2, 12, ((0.4, 0.4), (0.6, 0.6))),  # elsewhere: long pieces split, each runs on
+    )
+    from scratch_iridescence.mitsuba_bridge.bsdf import incremental
+
+    searched = []  # pieces each extension searched for joins
+    original = incremental.continuations
+    monkeypatch.setattr(incremental, "continuations", lambda a, *rest: (searched.append(len(a)), original(a, *rest))[1])
+    for stroke, all_again in zip(strokes, (True, False, True, False)):
+        scratches = ScratchSet.concatenate([scratches, stroke])
+        before = cache.tables.continuation
+        searched.clear()
+        cache = update_tables(cache, scratches)
+        assert cache.incremental
+        assert searched == [cache.tables.piece_count if all_again else cache.tables.piece_count - len(before)]
+        assert_same(cache.tables, build_tables(scratches, kept))
+        assert np.count_nonzero(cache.tables.continuation) > np.count_nonzero(before)
