@@ -22,10 +22,10 @@ machine or spread over many (``--chunk K/N`` and ``merge`` on the command line).
   spp is at most 4, or when it divides 16 384 and the call is large (full
   chunks: more than 2**21 samples, large for up to 64 threads).  On a GPU
   (``gpu=True``) a full chunk takes at most :data:`GPU_CHUNK_SPP` samples per
-  pixel: a pixel's samples are then neighbouring lanes of one 32-lane warp,
-  whose additions to one pixel are combined before the warp's single atomic
-  add; a pixel spread over several warps gets their atomic adds in whatever
-  order they ran (measured on an H200: docs/rendering.md).  The schedule is
+  pixel: a pixel's samples are then neighbouring lanes of one 32-lane warp.
+  Measured on an H200 (docs/rendering.md): chunks of up to 32 spp rendered the
+  same bits every time, chunks of 64 and more did not (a pixel over several
+  warps gets their atomic additions in whatever order they ran).  The schedule is
   then another one (its digest differs), and split renders merge only parts
   of one variant anyway.
 * **Seeds.**  Chunk ``i`` uses :func:`pass_seed` ``(seed, i)``: distinct
