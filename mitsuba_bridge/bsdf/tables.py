@@ -229,8 +229,8 @@ def continuations(a, b, segments, lattice=None) -> np.ndarray:
     def joins(first):
         """(piece, the piece its groove runs straight on into) for the ends of one chunk of pieces."""
         mine = np.arange(first, min(first + CHUNK, count))
-        end_keys = keys(b[mine])
-        at = np.minimum(np.searchsorted(sorted_keys, end_keys), count - 1)
+        ends = keys(b[mine])
+        at = np.minimum(np.searchsorted(sorted_keys, ends), count - 1)
         follower = order[at]
         e, e_next = b[mine] - a[mine], b[follower] - a[follower]
         size = np.hypot(e[:, 0], e[:, 1]) * np.hypot(e_next[:, 0], e_next[:, 1])
@@ -238,7 +238,7 @@ def continuations(a, b, segments, lattice=None) -> np.ndarray:
         forward = np.einsum("ij,ij->i", e, e_next) > 0
         straight = (sine_times_size < STRAIGHT_ON_SIN * np.maximum(size, 1e-300)) & forward
         same = (segments[mine, 6] == segments[follower, 6]) & (segments[mine, 7] == segments[follower, 7])
-        joined = (sorted_keys[at] == end_keys) & straight & same & (follower != mine)
+        joined = (sorted_keys[at] == ends) & straight & same & (follower != mine)
         return mine[joined], follower[joined]
 
     # chunks of ends bound the temporaries; each writes its own pieces' successors
