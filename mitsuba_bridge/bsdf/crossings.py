@@ -12,10 +12,11 @@ starting there, so it is found once).  Intersection parameters are invariant
 under the linear UV → tangent-plane map, so this test is exact in UV whatever
 the mesh's Jacobian.  Candidates are the pieces listed together in a cell of
 the lookup grid (both pieces are listed in the cell of their crossing point).
-Left out (their overlap stays additive, docs/model.md §3.4):
+Left out (docs/model.md §3.4):
 
 * nearly parallel pairs, ``|sin θ| < MIN_SINE`` (measured in UV): their
-  overlap is a long sliver whose shape the piece ends decide;
+  overlap is a long sliver whose shape the piece ends and the widths in µm
+  decide; the kernel pairs them itself (:mod:`.parallel`);
 * consecutive pieces of one polyline (they share an end point);
 * cells whose pieces all lie within ``MIN_SINE / 2`` of the cell's dominant
   direction (a CD's tracks, a grating: no pair there can count), so dense

@@ -22,6 +22,7 @@ from .energy import albedo_excess
 from .fresnel import fresnel_conductor
 from .lookup import Grid, for_each_crossing, for_each_segment, jacobian, replay_pieces, segment_at
 from .overlap import crossing_correction
+from .parallel import RECENT_PIECES, add_parallel_overlaps
 from .periodic import MAX_INCOHERENT_WIDTH_SIGMAS, family_field, family_intensity, find_family, run_energies
 from .segment import SegmentGeometry, amplitude, frequencies, incoherent_intensity
 from .triples import add_triples
@@ -57,6 +58,8 @@ class Model:
     height_field: bool = False
     #: with height_field: add the triple-overlap terms too (docs/model.md §3.4); off only to measure them
     triples: bool = True
+    #: with height_field: correct overlaps of nearly parallel pieces too (parallel.py); off only to measure them
+    parallel_overlaps: bool = True
     #: with height_field: scale the field back to |U| <= 2πσ² (docs/model.md §3.4); off only to test the terms
     clamp_to_height_field_bound: bool = True
     #: sum periodic families (a CD's tracks, a grating) in closed form where a window lies in one
@@ -211,9 +214,11 @@ class Model:
                 density0 = dr.select(inside, density0, 0.0)
         # "bounded": Σ_k e_k(ω_i), Σ_k e_k(ω_o), the albedo estimate's segment terms (docs/model.md §4.1)
         bounded = self.depth_phase == "bounded" and coherent and want_value and has_glossy
+        # nearly parallel overlaps: each piece found is paired with the last RECENT_PIECES found (parallel.py)
+        pairing = self.height_field and self.parallel_overlaps and coherent and want_value and has_glossy
 
         def body(segment, piece, state):
-            (a, b), energy, density, excess = state
+            (a, b), energy, density, excess, paired = state
             if want_value and has_glossy:
                 if coherent:
                     s = amplitude(segment, xi_x, xi_y, k_z, sigma)
@@ -229,6 +234,11 @@ class Model:
 
                         a, b = for_each_crossing(self.grid, jac, piece, segment, WINDOW_RADIUS_SIGMAS * sigma, (a, b),
                                                  add_crossing)
+                    if pairing:
+                        seen, recent, (a, b) = add_parallel_overlaps(
+                            self.grid, jac, piece, segment, *paired, xi_x, xi_y, k_z, sigma,
+                            WINDOW_RADIUS_SIGMAS * sigma, (a, b))
+                        paired = (seen, recent)
                 else:  # Σ|S'|² over straight segments, pieces of one joined (segment.incoherent_intensity)
                     before, after = self._runs_on(segment, piece)
                     a = spectrum(a + incoherent_intensity(segment, xi_x, xi_y, k_z, sigma, before, after))
@@ -241,17 +251,18 @@ class Model:
                 # (never in place: the inputs of a symbolic branch must stay untouched)
                 energy = energy + weight
                 density = density + weight * self._scratch_density(segment, xi0_x, xi0_y, wi, lam0, kz0)
-            return (a, b), energy, density, excess
+            return (a, b), energy, density, excess, paired
 
-        # (the excess sums join the loop state only when they are used: no cost for the other phases)
-        state = (field, energy0, density0, (zero_s, zero_s) if bounded else ())
+        # (the excess sums and the recent pieces join the loop state only when they are used)
+        no_pieces = (dr.zeros(mi.UInt32), tuple(dr.zeros(mi.UInt32) for _ in range(RECENT_PIECES)))
+        state = (field, energy0, density0, (zero_s, zero_s) if bounded else (), no_pieces if pairing else ())
         if found is not None:
             count, kept = found
             replaying = scanning & (count <= REPLAY_PIECES)
             scanning &= ~replaying
             state = replay_pieces(self.grid, jac, count, kept, state, body, replaying)
-        (a, b), energy, density, excess = for_each_segment(self.grid, jac, WINDOW_RADIUS_SIGMAS * sigma, state,
-                                                           body, scanning)
+        (a, b), energy, density, excess, _ = for_each_segment(self.grid, jac, WINDOW_RADIUS_SIGMAS * sigma, state,
+                                                              body, scanning)
 
         value = pdf = None
         if want_value:
@@ -274,8 +285,8 @@ class Model:
         """The field scaled back to ``|U| <= 2πσ²`` where it exceeds it (docs/model.md §3.4).
 
         Every height field has |T| = 1, so ``|U| <= ∫ w = 2πσ²``; the truncated inclusion–exclusion can
-        exceed that in piles beyond its orders and where mutually nearly parallel scratches (left
-        additive among themselves) all cross another one."""
+        exceed that in piles beyond its orders and where mutually nearly parallel scratches all cross
+        another one (their overlaps of three and more are not corrected)."""
         limit2 = (2.0 * math.pi * sigma * sigma) ** 2
         size2 = a * a + b * b
         scale = dr.select(size2 > limit2, dr.sqrt(limit2 / dr.maximum(size2, 1e-30)), 1.0)

@@ -46,8 +46,8 @@ DEFAULT_CROSSINGS = "additive"
 CROSSING_ITEMS = (
     ("additive", "Additive", "Overlapping scratches add their effects, as in the paper: a crossing "
                              "counts both depths"),
-    ("height_field", "Height Field", "Where scratches cross, the deepest one wins, as on a real surface "
-                                     "(several times slower on densely scratched sets, V-grooves most; "
-                                     "nearly parallel overlaps stay additive)"),
+    ("height_field", "Height Field", "Where scratches cross or run over each other, the deepest one wins, "
+                                     "as on a real surface (several times slower on densely scratched sets, "
+                                     "V-grooves most)"),
 )
 CROSSINGS = tuple(code for code, _, _ in CROSSING_ITEMS)

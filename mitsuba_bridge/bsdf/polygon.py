@@ -60,21 +60,43 @@ class Strip:
 
 #: Far end of the interval a half-plane leaves on a line (µm): beyond any polygon here.
 _UNBOUNDED = 1e30
+#: Parallel boundary lines closer than this (µm) are one line (float32 offsets of a few µm: ~1e-6 µm).
+TIE_UM = 1e-5
 
 
-def _interval_on_line(line: Strip, level, other: Strip):
-    """Parameter interval ``[lo, hi]`` of ``y = level n + τ d`` (d = (n_y, -n_x)) inside ``other``."""
+def _interval_on_line(line: Strip, level, sign, other: Strip, first: bool):
+    """Parameter interval ``[lo, hi]`` of ``y = level n + τ d`` (d = (n_y, -n_x)) inside ``other``.
+
+    ``sign``: the orientation of the edge's outward normal (``sign`` n); ``first``: whether ``line``'s strip
+    comes before ``other`` in the list.  Where the two are parallel the whole line is inside or outside;
+    where it lies on one of ``other``'s boundary lines (the same line within ``TIE_UM``), the edge counts
+    once: if both outward normals agree (the same half-plane twice, e.g. two strips sharing an edge), only
+    the earlier strip's edge is inside; if they are opposite (a polygon of zero width), neither is."""
     dx, dy = line.ny, -line.nx
-    slope = other.nx * dx + other.ny * dy
-    slope = dr.select(dr.abs(slope) > 1e-6, slope, 1e-6)  # parallel: all or nothing, decided by the other strip
-    base = level * (other.nx * line.nx + other.ny * line.ny)
+    raw = other.nx * dx + other.ny * dy
+    parallel = dr.abs(raw) <= 1e-6
+    slope = dr.select(parallel, 1.0, raw)
+    along = other.nx * line.nx + other.ny * line.ny  # ±1 where parallel
+    base = level * along
     inv = dr.rcp(slope)
+
+    def tie(outward):  # the margin of the parallel test against other's boundary of outward normal ``outward`` n_o
+        if not first:
+            return -TIE_UM
+        return dr.select(sign * along * outward > 0.0, TIE_UM, -TIE_UM)
+
     if other.half_width is None:  # base + τ slope <= offset
         bound = (other.offset - base) * inv
-        return dr.select(slope > 0.0, -_UNBOUNDED, bound), dr.select(slope > 0.0, bound, _UNBOUNDED)
+        inside = base <= other.offset + tie(1.0)
+        lo = dr.select(parallel, dr.select(inside, -_UNBOUNDED, _UNBOUNDED), dr.select(slope > 0.0, -_UNBOUNDED, bound))
+        hi = dr.select(parallel, dr.select(inside, _UNBOUNDED, -_UNBOUNDED), dr.select(slope > 0.0, bound, _UNBOUNDED))
+        return lo, hi
     t1 = (other.offset - other.half_width - base) * inv
     t2 = (other.offset + other.half_width - base) * inv
-    return dr.minimum(t1, t2), dr.maximum(t1, t2)
+    inside = (base <= other.offset + other.half_width + tie(1.0)) & (base >= other.offset - other.half_width - tie(-1.0))
+    lo = dr.select(parallel, dr.select(inside, -_UNBOUNDED, _UNBOUNDED), dr.minimum(t1, t2))
+    hi = dr.select(parallel, dr.select(inside, _UNBOUNDED, -_UNBOUNDED), dr.maximum(t1, t2))
+    return lo, hi
 
 
 def clipped_cell(strips, cx, cy, xi_x, xi_y, sigma) -> Cx:
@@ -114,11 +136,11 @@ def clipped_cell(strips, cx, cy, xi_x, xi_y, sigma) -> Cx:
     terms = []
     for s in range(len(strips)):
         line = strips[s]
-        others = [strips[r] for r in range(len(strips)) if r != s]
+        others = [(strips[r], s < r) for r in range(len(strips)) if r != s]
         for level, sign in line.levels():
             lo = hi = None
-            for other in others:
-                a, b = _interval_on_line(line, level, other)
+            for other, first in others:
+                a, b = _interval_on_line(line, level, sign, other, first)
                 lo = a if lo is None else dr.maximum(lo, a)
                 hi = b if hi is None else dr.minimum(hi, b)
             length = dr.maximum(hi - lo, 0.0)

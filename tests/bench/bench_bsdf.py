@@ -25,7 +25,8 @@ U_W[0.5, 6] µm), at shading points on the scratches (every lane has pieces in
 its window), alternately, as the ratio of the two; with the table build time
 and the number of crossing pairs.  ``height_field`` is timed twice: with its
 overlap terms of order 3 and more (triples.py, the plugin's behaviour) and
-with the pair terms alone (``Model.triples = False``, the version before them).
+with the pair terms alone (``Model.triples = False``, the version before them), and a third
+time without the nearly parallel overlaps (``Model.parallel_overlaps = False``, parallel.py).
 The worn plate only with ``--worn``: its crossing pairs (~100x the plate's) need more
 than the 23 GB of the development machine.
 
@@ -281,8 +282,10 @@ def crossing_sets(args, rng):
             loaded[mode] = mi.load_dict(scratch_bsdf.plugin_dict(scratches, unit_scale=plate_m, crossings=mode))
             seconds[mode] = time.perf_counter() - start
         # the pair terms alone: the same tables, the model without its overlaps of three and more
+        # and without the nearly parallel overlaps (parallel.py)
         models = {"height_field": loaded["height_field"].model,
-                  "pairs only": dataclasses.replace(loaded["height_field"].model, triples=False)}
+                  "pairs only": dataclasses.replace(loaded["height_field"].model, triples=False),
+                  "no parallel": dataclasses.replace(loaded["height_field"].model, parallel_overlaps=False)}
         tables = loaded["height_field"].tables
         pieces = tables.segments[rng.integers(0, tables.piece_count, n)].astype(np.float64)
         point = pieces[:, 0:2] + pieces[:, 2:4] + rng.random(n)[:, None] * pieces[:, 4:6]
@@ -296,7 +299,7 @@ def crossing_sets(args, rng):
         wo = mi.warp.square_to_cosine_hemisphere(mi.Point2f(mi.Float(rng.random(n)), mi.Float(rng.random(n))))
         dr.eval(si, wo)
         ctx = mi.BSDFContext()
-        best = {mode: float("inf") for mode in ("additive", "height_field", "pairs only")}
+        best = {mode: float("inf") for mode in ("additive", "height_field", "pairs only", "no parallel")}
         for i in range(args.repeat + 1):
             for mode in best:
                 bsdf = loaded["additive" if mode == "additive" else "height_field"]
@@ -312,7 +315,8 @@ def crossing_sets(args, rng):
               f"{best['additive'] / n * 1e9:6.0f} ns / {best['height_field'] / n * 1e9:6.0f} ns per query "
               f"= {best['height_field'] / best['additive']:.2f} x; pairs only {best['pairs only'] / n * 1e9:6.0f} ns "
               f"= {best['pairs only'] / best['additive']:.2f} x; with higher orders / pairs only "
-              f"{best['height_field'] / best['pairs only']:.2f} x")
+              f"{best['height_field'] / best['pairs only']:.2f} x; without the nearly parallel overlaps "
+              f"{best['no parallel'] / n * 1e9:6.0f} ns (height field / that {best['height_field'] / best['no parallel']:.2f} x)")
 
 
 if __name__ == "__main__":

@@ -3,9 +3,10 @@ against the brute-force height field for the crossing sets of tests/bsdf/test_cr
 450/550/650 nm × incidence 0/40/70°, for the additive model, the pair terms alone (the correction before
 its overlaps of three and more), the height-field correction with them, and the pair terms alone against the
 pairwise inclusion–exclusion of the same raster (what they implement exactly).  With ``--v-grooves``:
-the sets with V-grooves instead, against the height field summed per direction (coarser planes).
+the sets with V-grooves instead, against the height field summed per direction (coarser planes); with
+``--parallel``: the nearly parallel pairs (parallel.py), the height field with and without their correction.
 
-    .venv/bin/python tests/bench/bench_crossings.py [--v-grooves]
+    .venv/bin/python tests/bench/bench_crossings.py [--v-grooves | --parallel]
 """
 from __future__ import annotations
 
@@ -45,11 +46,27 @@ def v_grooves():
               flush=True)
 
 
+def parallel():
+    print("| pair | additive | height field without them | height field |")
+    print("|---|---|---|---|")
+    for name, scratches in tc.PARALLEL_PAIRS.items():
+        started = time.perf_counter()
+        out = tc.parallel_errors(scratches, tc.ALL_COMBOS)
+        worst = [max(v[i] for v in out.values()) for i in range(3)]
+        print(f"| {name} | {100 * worst[0]:.0f} % | {100 * worst[1]:.0f} % | {100 * worst[2]:.2f} % |"
+              f"  ({time.perf_counter() - started:.0f} s)", flush=True)
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--v-grooves", action="store_true")
-    if parser.parse_args().v_grooves:
+    parser.add_argument("--parallel", action="store_true")
+    args = parser.parse_args()
+    if args.v_grooves:
         v_grooves()
+        return
+    if args.parallel:
+        parallel()
         return
     print("| set | crossing share | triple share | additive | pairs only | height field | pairs only vs pairwise raster |")
     print("|---|---|---|---|---|---|---|")
