@@ -46,7 +46,8 @@ from .overlap import below, depth_plane
 from .polygon import Strip, clipped_cell
 from .segment import SegmentGeometry
 
-__all__ = ["RECENT_PIECES", "SUB_EDGE_SIGMAS", "MAX_ALONG", "MAX_ACROSS", "add_parallel_overlaps", "parallel_correction"]
+__all__ = ["RECENT_PIECES", "SUB_EDGE_SIGMAS", "MAX_ALONG", "MAX_ACROSS", "add_parallel_overlaps",
+           "parallel_correction"]
 
 #: Pieces of the window each new one is paired with (the loop state holds their indices).
 RECENT_PIECES = 8
@@ -82,7 +83,8 @@ def add_parallel_overlaps(grid: Grid, jac: LocalJacobian, piece, segment: Segmen
             other = dr.select(slot == k, recent[k], other)
         other_tail = dr.gather(mi.Vector4f, grid.segments, 2 * other + 1)
         cross = tail.x * other_tail.y - tail.y * other_tail.x
-        norms = dr.sqrt((tail.x * tail.x + tail.y * tail.y) * (other_tail.x * other_tail.x + other_tail.y * other_tail.y))
+        norms = dr.sqrt((tail.x * tail.x + tail.y * tail.y)
+                        * (other_tail.x * other_tail.x + other_tail.y * other_tail.y))
         candidate = dr.abs(cross) < MIN_SINE * norms  # the same test as the tables' (crossings.py), in UV
         first = segment_at(grid, jac, other, candidate)
         c = parallel_correction(first, segment, xi_x, xi_y, k_z, sigma, radius, candidate & ~_joined(first, segment))

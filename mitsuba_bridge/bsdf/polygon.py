@@ -80,7 +80,7 @@ def _interval_on_line(line: Strip, level, sign, other: Strip, first: bool):
     base = level * along
     inv = dr.rcp(slope)
 
-    def tie(outward):  # the margin of the parallel test against other's boundary of outward normal ``outward`` n_o
+    def tie(outward):  # the parallel test's margin against other's boundary of outward normal ``outward`` n_o
         if not first:
             return -TIE_UM
         return dr.select(sign * along * outward > 0.0, TIE_UM, -TIE_UM)
@@ -88,12 +88,15 @@ def _interval_on_line(line: Strip, level, sign, other: Strip, first: bool):
     if other.half_width is None:  # base + τ slope <= offset
         bound = (other.offset - base) * inv
         inside = base <= other.offset + tie(1.0)
-        lo = dr.select(parallel, dr.select(inside, -_UNBOUNDED, _UNBOUNDED), dr.select(slope > 0.0, -_UNBOUNDED, bound))
-        hi = dr.select(parallel, dr.select(inside, _UNBOUNDED, -_UNBOUNDED), dr.select(slope > 0.0, bound, _UNBOUNDED))
+        lo = dr.select(parallel, dr.select(inside, -_UNBOUNDED, _UNBOUNDED),
+                       dr.select(slope > 0.0, -_UNBOUNDED, bound))
+        hi = dr.select(parallel, dr.select(inside, _UNBOUNDED, -_UNBOUNDED),
+                       dr.select(slope > 0.0, bound, _UNBOUNDED))
         return lo, hi
     t1 = (other.offset - other.half_width - base) * inv
     t2 = (other.offset + other.half_width - base) * inv
-    inside = (base <= other.offset + other.half_width + tie(1.0)) & (base >= other.offset - other.half_width - tie(-1.0))
+    inside = ((base <= other.offset + other.half_width + tie(1.0))
+              & (base >= other.offset - other.half_width - tie(-1.0)))
     lo = dr.select(parallel, dr.select(inside, -_UNBOUNDED, _UNBOUNDED), dr.minimum(t1, t2))
     hi = dr.select(parallel, dr.select(inside, _UNBOUNDED, -_UNBOUNDED), dr.maximum(t1, t2))
     return lo, hi

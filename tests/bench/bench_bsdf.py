@@ -316,7 +316,8 @@ def crossing_sets(args, rng):
               f"= {best['height_field'] / best['additive']:.2f} x; pairs only {best['pairs only'] / n * 1e9:6.0f} ns "
               f"= {best['pairs only'] / best['additive']:.2f} x; with higher orders / pairs only "
               f"{best['height_field'] / best['pairs only']:.2f} x; without the nearly parallel overlaps "
-              f"{best['no parallel'] / n * 1e9:6.0f} ns (height field / that {best['height_field'] / best['no parallel']:.2f} x)")
+              f"{best['no parallel'] / n * 1e9:6.0f} ns (height field / that "
+              f"{best['height_field'] / best['no parallel']:.2f} x)")
 
 
 if __name__ == "__main__":

@@ -433,14 +433,19 @@ def parallel_pairs():
     """Pairs of scratches nearly parallel (|sin θ| < MIN_SINE) or parallel that overlap near x0: the tables list
     none of them; the kernel pairs the pieces it finds (parallel.py). Rotated by 17° so that no edge follows
     the raster's axes."""
+    flat, v = ref.RECT, ref.TRI
     pairs = {
-        "parallel, half overlapping": [ref.Scratch((-30, 0.0), (30, 0.0), 1.0, 0.25), ref.Scratch((-30, 0.5), (30, 0.5), 1.5, 0.4)],
-        "2 degrees through x0": [ref.Scratch((-30, 0.0), (30, 0.0), 1.0, 0.25), ref.Scratch((-30, -1.05), (30, 1.05), 1.5, 0.4)],
-        "0.6 degrees, ends inside": [ref.Scratch((-30, 0.2), (5, 0.2), 2.0, 0.3), ref.Scratch((-4, -0.1), (30, 0.25), 1.5, 0.45)],
+        "parallel, half overlapping": [ref.Scratch((-30, 0.0), (30, 0.0), 1.0, 0.25),
+                                       ref.Scratch((-30, 0.5), (30, 0.5), 1.5, 0.4)],
+        "2 degrees through x0": [ref.Scratch((-30, 0.0), (30, 0.0), 1.0, 0.25),
+                                 ref.Scratch((-30, -1.05), (30, 1.05), 1.5, 0.4)],
+        "0.6 degrees, ends inside": [ref.Scratch((-30, 0.2), (5, 0.2), 2.0, 0.3),
+                                     ref.Scratch((-4, -0.1), (30, 0.25), 1.5, 0.45)],
         "wide along narrow": [ref.Scratch((-30, 0.0), (30, 0.0), 4.0, 0.2), ref.Scratch((-3, 0.5), (3, 0.6), 0.6, 0.5)],
-        "V x V, 1 degree, ends inside": [ref.Scratch((-30, 0.2), (5, 0.2), 2.0, 0.3, ref.TRI),
-                                         ref.Scratch((-4, -0.1), (30, 0.4), 1.5, 0.45, ref.TRI)],
-        "flat x V, parallel": [ref.Scratch((-30, 0.0), (30, 0.0), 1.0, 0.25), ref.Scratch((-30, 0.5), (30, 0.5), 1.5, 0.4, ref.TRI)],
+        "V x V, 1 degree, ends inside": [ref.Scratch((-30, 0.2), (5, 0.2), 2.0, 0.3, v),
+                                         ref.Scratch((-4, -0.1), (30, 0.4), 1.5, 0.45, v)],
+        "flat x V, parallel": [ref.Scratch((-30, 0.0), (30, 0.0), 1.0, 0.25, flat),
+                               ref.Scratch((-30, 0.5), (30, 0.5), 1.5, 0.4, v)],
     }
     turn = np.radians(17.0)
     c, s = np.cos(turn), np.sin(turn)
@@ -448,7 +453,8 @@ def parallel_pairs():
     def rotated(p):
         return (c * p[0] - s * p[1], s * p[0] + c * p[1])
 
-    return {name: [dataclasses.replace(x, a=rotated(x.a), b=rotated(x.b)) for x in pair] for name, pair in pairs.items()}
+    return {name: [dataclasses.replace(x, a=rotated(x.a), b=rotated(x.b)) for x in pair]
+            for name, pair in pairs.items()}
 
 
 PARALLEL_PAIRS = parallel_pairs()
