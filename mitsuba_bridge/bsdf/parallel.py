@@ -54,8 +54,8 @@ RECENT_PIECES = 8
 #: Cells are at most this many σ long and wide, as the crossings' (overlap.SUB_EDGE_SIGMAS).  An overlap can
 #: be a whole piece inside the window (a duplicated scratch), whose correction must then cancel the piece's
 #: exact amplitude: a duplicate against the scratch alone, σ = 2 µm, 550 nm, 40°, was 2.4 % off in f_r with
-#: cells of σ/2, 0.31 % with σ/4 and 0.02 % with σ/8, but σ/4 cost 2.2× σ/2 on a crossed plate's queries
-#: (docs/bsdf.md, Cost).
+#: cells of σ/2, 0.31 % with σ/4 and 0.02 % with σ/8, but with σ/4 the term made a crossed plate's queries
+#: 2.38× as slow instead of 1.49× (docs/bsdf.md, Cost).
 SUB_EDGE_SIGMAS = 0.5
 #: Most slabs along the overlap (the window is 2R = 8σ long: 16 slabs of σ/2).
 MAX_ALONG = 16
