@@ -76,6 +76,7 @@ def add_parallel_overlaps(grid: Grid, jac: LocalJacobian, piece, segment: Segmen
     with the piece recorded."""
     spectrum = type(xi_x)
     tail = dr.gather(mi.Vector4f, grid.segments, 2 * piece + 1)
+    own_ends = _ends(segment)  # (the same for every slot)
 
     def step(slot, re, im):
         other = recent[-1]
@@ -87,7 +88,8 @@ def add_parallel_overlaps(grid: Grid, jac: LocalJacobian, piece, segment: Segmen
                         * (other_tail.x * other_tail.x + other_tail.y * other_tail.y))
         candidate = dr.abs(cross) < MIN_SINE * norms  # the same test as the tables' (crossings.py), in UV
         first = segment_at(grid, jac, other, candidate)
-        c = parallel_correction(first, segment, xi_x, xi_y, k_z, sigma, radius, candidate & ~_joined(first, segment))
+        c = parallel_correction(first, segment, xi_x, xi_y, k_z, sigma, radius,
+                                candidate & ~_joined(_ends(first), own_ends))
         return slot + 1, spectrum(re + c.re), spectrum(im + c.im)
 
     slots = dr.minimum(seen, len(recent))
@@ -106,10 +108,11 @@ def _ends(segment: SegmentGeometry):
     return sx, sy, sx + segment.length * segment.dx, sy + segment.length * segment.dy
 
 
-def _joined(first: SegmentGeometry, second: SegmentGeometry):
-    """Whether one piece ends where the other starts (consecutive pieces of a polyline or of a cut run)."""
-    s1x, s1y, e1x, e1y = _ends(first)
-    s2x, s2y, e2x, e2y = _ends(second)
+def _joined(first_ends, second_ends):
+    """Whether one piece ends where the other starts (consecutive pieces of a polyline or of a cut run);
+    the arguments are :func:`_ends` of the two pieces."""
+    s1x, s1y, e1x, e1y = first_ends
+    s2x, s2y, e2x, e2y = second_ends
     limit = JOINED_UM * JOINED_UM
     return ((dr.square(e1x - s2x) + dr.square(e1y - s2y) < limit)
             | (dr.square(e2x - s1x) + dr.square(e2y - s1y) < limit))
@@ -129,8 +132,7 @@ def parallel_correction(first: SegmentGeometry, second: SegmentGeometry, xi_x, x
     cosine = dr.select(active, cosine, 1.0)
     slope = sine / cosine  # du/dt of the second centre line in the first's frame
     # the second's start in the first's frame (t along d_1 from x0's foot point, u across)
-    b0x = second.c * bx - second.a_perp * by
-    b0y = second.c * by + second.a_perp * bx
+    b0x, b0y, _, _ = _ends(second)
     t_b0, u_b0 = ax * b0x + ay * b0y, nx * b0x + ny * b0y
     t_b1 = t_b0 + second.length * cosine
     half_b = 0.5 * second.width / dr.abs(cosine)  # the second strip's half extent across, at fixed t

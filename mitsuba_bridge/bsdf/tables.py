@@ -216,11 +216,7 @@ def continuations(a, b, segments, lattice=None) -> np.ndarray:
     if count < 2:
         return result
     lattice = end_lattice(a, b) if lattice is None else lattice
-
-    def keys(points):
-        return end_keys(points, lattice)
-
-    start_keys = keys(a)
+    start_keys = end_keys(a, lattice)
     order = np.argsort(start_keys, kind="stable")  # equal starts by piece: an extension keeps the choice
     sorted_keys = start_keys[order]
     del start_keys
@@ -229,7 +225,7 @@ def continuations(a, b, segments, lattice=None) -> np.ndarray:
     def joins(first):
         """(piece, the piece its groove runs straight on into) for the ends of one chunk of pieces."""
         mine = np.arange(first, min(first + CHUNK, count))
-        ends = keys(b[mine])
+        ends = end_keys(b[mine], lattice)
         at = np.minimum(np.searchsorted(sorted_keys, ends), count - 1)
         follower = order[at]
         e, e_next = b[mine] - a[mine], b[follower] - a[follower]
