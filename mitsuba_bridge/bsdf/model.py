@@ -56,7 +56,8 @@ class Model:
     depth_phase: str = "kirchhoff"  #: or "incidence", "bounded" (docs/bsdf.md, Energy)
     #: correct crossings of pieces to the height field (docs/model.md §3.4; coherent mode)
     height_field: bool = False
-    #: with height_field: add the triple-overlap terms too (docs/model.md §3.4); off only to measure them
+    #: with height_field: add the terms of overlaps of three to five too (triples.py, and parallel.py for three
+    #: mutually nearly parallel pieces; docs/model.md §3.4); off only to measure them
     triples: bool = True
     #: with height_field: correct overlaps of nearly parallel pieces too (parallel.py); off only to measure them
     parallel_overlaps: bool = True
@@ -229,7 +230,8 @@ class Model:
                             field = spectrum(field[0] + c.re), spectrum(field[1] + c.im)
                             if self.triples:
                                 field = add_triples(self.grid, jac, segment, partner, piece, partner_piece,
-                                                    crossing_uv, xi_x, xi_y, k_z, sigma, field)
+                                                    crossing_uv, xi_x, xi_y, k_z, sigma, field,
+                                                    with_parallel=self.parallel_overlaps)
                             return field
 
                         a, b = for_each_crossing(self.grid, jac, piece, segment, WINDOW_RADIUS_SIGMAS * sigma, (a, b),
@@ -237,7 +239,7 @@ class Model:
                     if pairing:
                         seen, recent, (a, b) = add_parallel_overlaps(
                             self.grid, jac, piece, segment, *paired, xi_x, xi_y, k_z, sigma,
-                            WINDOW_RADIUS_SIGMAS * sigma, (a, b))
+                            WINDOW_RADIUS_SIGMAS * sigma, (a, b), with_triples=self.triples)
                         paired = (seen, recent)
                 else:  # Σ|S'|² over straight segments, pieces of one joined (segment.incoherent_intensity)
                     before, after = self._runs_on(segment, piece)

@@ -27,10 +27,18 @@ half by half), and the line h_1 = h_2 splits the polygon into two, each with
 its depth's phase as a shift of the frequency (as in
 :func:`.overlap._sloped_correction`).
 
+**Bunches.**  Three mutually nearly parallel pieces (no crossing pair for
+:mod:`.triples` to find their overlap from) get the term of order 3,
+``+(e^{iκ_min} - 1) ∫`` over the overlap of the three rectangles, when the
+last of them is found with the other two among the recent pieces: the new
+piece's pair cells clipped by the third rectangle too (flat bottoms only).
+Their piles of four and more stay uncorrected (docs/model.md §3.4 bounds them).
+
 Pairs left alone (additive): consecutive pieces of one polyline or run (they
-share an end point), pieces found more than RECENT_PIECES apart, and the
-overlaps of three or more involving a nearly parallel pair (the triple terms of
-:mod:`.triples` keep to crossing pairs).  Lengths in µm.
+share an end point) and pieces found more than RECENT_PIECES apart; so are
+the triples of a bunch with such a pair or with a V-groove.  The overlaps of
+three or more that hold a nearly parallel pair and a crossing pair are
+:mod:`.triples`' (found from the crossing pair).  Lengths in µm.
 """
 from __future__ import annotations
 
@@ -47,7 +55,7 @@ from .polygon import Strip, clipped_cell
 from .segment import SegmentGeometry
 
 __all__ = ["RECENT_PIECES", "SUB_EDGE_SIGMAS", "MAX_ALONG", "MAX_ACROSS", "add_parallel_overlaps",
-           "parallel_correction"]
+           "parallel_correction", "piece_ends", "consecutive"]
 
 #: Pieces of the window each new one is paired with (the loop state holds their indices).
 RECENT_PIECES = 8
@@ -68,29 +76,52 @@ JOINED_UM = 1e-2
 
 
 def add_parallel_overlaps(grid: Grid, jac: LocalJacobian, piece, segment: SegmentGeometry, seen, recent: tuple,
-                          xi_x, xi_y, k_z, sigma, radius, field):
+                          xi_x, xi_y, k_z, sigma, radius, field, with_triples: bool = True):
     """Add the corrections of ``piece`` with the pieces found before it in the window.
 
     ``seen``: how many pieces the window's scan has found so far; ``recent``: the last RECENT_PIECES of
-    them (slot ``k`` holds the one found ``k`` mod RECENT_PIECES).  Returns ``(seen, recent, field)``
-    with the piece recorded."""
+    them (slot ``k`` holds the one found ``k`` mod RECENT_PIECES).  ``with_triples``: the threefold
+    overlaps of the piece with two of them, all three mutually nearly parallel, too (flat bottoms; module
+    docstring).  Returns ``(seen, recent, field)`` with the piece recorded."""
     spectrum = type(xi_x)
     tail = dr.gather(mi.Vector4f, grid.segments, 2 * piece + 1)
-    own_ends = _ends(segment)  # (the same for every slot)
+    own_ends = piece_ends(segment)  # (the same for every slot)
+
+    def recent_piece(slot):
+        found = recent[-1]
+        for k in range(len(recent) - 2, -1, -1):
+            found = dr.select(slot == k, recent[k], found)
+        return found, dr.gather(mi.Vector4f, grid.segments, 2 * found + 1)
 
     def step(slot, re, im):
-        other = recent[-1]
-        for k in range(len(recent) - 2, -1, -1):
-            other = dr.select(slot == k, recent[k], other)
-        other_tail = dr.gather(mi.Vector4f, grid.segments, 2 * other + 1)
-        cross = tail.x * other_tail.y - tail.y * other_tail.x
-        norms = dr.sqrt((tail.x * tail.x + tail.y * tail.y)
-                        * (other_tail.x * other_tail.x + other_tail.y * other_tail.y))
-        candidate = dr.abs(cross) < MIN_SINE * norms  # the same test as the tables' (crossings.py), in UV
+        other, other_tail = recent_piece(slot)
+        candidate = nearly_parallel(tail, other_tail)  # the complement of the tables' pairs (crossings.py), in UV
         first = segment_at(grid, jac, other, candidate)
-        c = parallel_correction(first, segment, xi_x, xi_y, k_z, sigma, radius,
-                                candidate & ~_joined(_ends(first), own_ends))
-        return slot + 1, spectrum(re + c.re), spectrum(im + c.im)
+        first_ends = piece_ends(first)
+        paired = candidate & ~consecutive(first_ends, own_ends)
+        c = parallel_correction(first, segment, xi_x, xi_y, k_z, sigma, radius, paired)
+        re, im = spectrum(re + c.re), spectrum(im + c.im)
+        if with_triples:  # with each earlier slot's piece nearly parallel to both: the threefold overlap
+            def skip(earlier):  # cheap: lanes wait for each other on candidate triples only
+                def misses(earlier):
+                    _, third_tail = recent_piece(earlier)
+                    return (earlier < slot) & ~(nearly_parallel(tail, third_tail)
+                                                & nearly_parallel(other_tail, third_tail))
+                return dr.while_loop((earlier,), misses, lambda earlier: (earlier + 1,),
+                                     label="scratch_parallel_triple_skip")[0]
+
+            def triple_step(earlier, re, im):
+                third_piece, _ = recent_piece(earlier)
+                third = segment_at(grid, jac, third_piece, True)
+                third_ends = piece_ends(third)
+                usable = ~consecutive(third_ends, own_ends) & ~consecutive(third_ends, first_ends)
+                c = parallel_correction(first, segment, xi_x, xi_y, k_z, sigma, radius, usable, third)
+                return skip(earlier + 1), spectrum(re + c.re), spectrum(im + c.im)
+
+            start = skip(dr.select(paired, mi.UInt32(0), slot))
+            _, re, im = dr.while_loop((start, re, im), lambda earlier, re, im: earlier < slot, triple_step,
+                                      label="scratch_parallel_triples")
+        return slot + 1, re, im
 
     slots = dr.minimum(seen, len(recent))
     _, re, im = dr.while_loop((dr.zeros(mi.UInt32), field[0], field[1]), lambda slot, re, im: slot < slots, step,
@@ -100,7 +131,14 @@ def add_parallel_overlaps(grid: Grid, jac: LocalJacobian, piece, segment: Segmen
     return seen + 1, recent, (re, im)
 
 
-def _ends(segment: SegmentGeometry):
+def nearly_parallel(tail, other_tail):
+    """Whether two pieces' UV directions (their rows' tails) make |sin θ| < MIN_SINE: no pair of the tables."""
+    cross = tail.x * other_tail.y - tail.y * other_tail.x
+    norms = dr.sqrt((tail.x * tail.x + tail.y * tail.y) * (other_tail.x * other_tail.x + other_tail.y * other_tail.y))
+    return dr.abs(cross) < MIN_SINE * norms
+
+
+def piece_ends(segment: SegmentGeometry):
     """Start and end point relative to x0 (local frame)."""
     nx, ny = -segment.dy, segment.dx
     sx = segment.c * segment.dx + segment.a_perp * nx
@@ -108,9 +146,9 @@ def _ends(segment: SegmentGeometry):
     return sx, sy, sx + segment.length * segment.dx, sy + segment.length * segment.dy
 
 
-def _joined(first_ends, second_ends):
+def consecutive(first_ends, second_ends):
     """Whether one piece ends where the other starts (consecutive pieces of a polyline or of a cut run);
-    the arguments are :func:`_ends` of the two pieces."""
+    the arguments are :func:`piece_ends` of the two pieces."""
     s1x, s1y, e1x, e1y = first_ends
     s2x, s2y, e2x, e2y = second_ends
     limit = JOINED_UM * JOINED_UM
@@ -119,10 +157,16 @@ def _joined(first_ends, second_ends):
 
 
 def parallel_correction(first: SegmentGeometry, second: SegmentGeometry, xi_x, xi_y, k_z, sigma, radius,
-                        active) -> Cx:
+                        active, third: SegmentGeometry | None = None) -> Cx:
     """``C(ξ)`` of the overlap of two nearly parallel pieces within ``radius`` of x0 along the first
-    (module docstring), per wavelength; zero where they do not overlap there or ``active`` is False."""
+    (module docstring), per wavelength; zero where they do not overlap there or ``active`` is False.
+
+    With ``third`` (a piece nearly parallel to both), the term of order 3 of the overlap of all three
+    instead, ``+(e^{iκ_min} - 1) ∫``: the pair's cells clipped by the third piece's rectangle too; flat
+    bottoms only (zero where a V-groove takes part)."""
     spectrum = type(xi_x)
+    if third is not None:
+        active = active & ~(first.triangular | second.triangular | third.triangular)
     ax, ay = first.dx, first.dy
     nx, ny = -ay, ax
     bx, by = second.dx, second.dy
@@ -132,7 +176,7 @@ def parallel_correction(first: SegmentGeometry, second: SegmentGeometry, xi_x, x
     cosine = dr.select(active, cosine, 1.0)
     slope = sine / cosine  # du/dt of the second centre line in the first's frame
     # the second's start in the first's frame (t along d_1 from x0's foot point, u across)
-    b0x, b0y, _, _ = _ends(second)
+    b0x, b0y, _, _ = piece_ends(second)
     t_b0, u_b0 = ax * b0x + ay * b0y, nx * b0x + ny * b0y
     t_b1 = t_b0 + second.length * cosine
     half_b = 0.5 * second.width / dr.abs(cosine)  # the second strip's half extent across, at fixed t
@@ -199,9 +243,15 @@ def parallel_correction(first: SegmentGeometry, second: SegmentGeometry, xi_x, x
             level = dr.select(second.triangular, level + side * (0.25 * second.width), level)
             half_w = dr.select(second.triangular, 0.25 * second.width, half_w)
         middle = second.c + 0.5 * second.length
-        return [Strip(ax, ay, 0.0, half_t), Strip(nx, ny, 0.0, half_u),
-                Strip(mx, my, level - (mx * cx + my * cy), half_w),
-                Strip(bx, by, middle - (bx * cx + by * cy), 0.5 * second.length)]
+        strips = [Strip(ax, ay, 0.0, half_t), Strip(nx, ny, 0.0, half_u),
+                  Strip(mx, my, level - (mx * cx + my * cy), half_w),
+                  Strip(bx, by, middle - (bx * cx + by * cy), 0.5 * second.length)]
+        if third is not None:  # the third rectangle: its strip and its ends
+            px, py = -third.dy, third.dx
+            strips += [Strip(px, py, third.a_perp - (px * cx + py * cy), 0.5 * third.width),
+                       Strip(third.dx, third.dy, third.c + 0.5 * third.length - (third.dx * cx + third.dy * cy),
+                             0.5 * third.length)]
+        return strips
 
     def flat_step(index, re, im):
         cx, cy, half_t, half_u = cell(index)
@@ -228,7 +278,9 @@ def parallel_correction(first: SegmentGeometry, second: SegmentGeometry, xi_x, x
 
     zero = dr.zeros(spectrum)
     _, re, im = dr.while_loop((mi.UInt32(0), zero, zero), lambda index, re, im: index < flat_cells, flat_step,
-                              label="scratch_parallel")
+                              label="scratch_parallel" if third is None else "scratch_parallel_triple")
+    if third is not None:  # order 3: + (e^{iκ_min} - 1) ∫ over the threefold overlap
+        return (expi(k_z * dr.minimum(dr.minimum(first.depth, second.depth), third.depth)) - 1.0) * Cx(re, im)
     shallow = k_z * dr.minimum(first.depth, second.depth)
     flat = -((expi(shallow) - 1.0) * Cx(re, im))
     _, re, im = dr.while_loop((mi.UInt32(0), zero, zero), lambda index, re, im: index < sloped_cells, sloped_step,

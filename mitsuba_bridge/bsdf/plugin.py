@@ -77,8 +77,10 @@ diffraction inside a Gaussian coherence window around each shading point.
        deepest one's depth, as on a real surface: one analytic
        parallelogram correction per crossing pair in the window, V-grooves
        included, plus the inclusion-exclusion terms of overlaps of three to
-       five flat-bottomed scratches, and the overlaps of nearly parallel
-       or parallel scratches (duplicates included) found in the window;
+       five flat-bottomed scratches (also where two of them are nearly
+       parallel and another crosses them), and the overlaps of nearly
+       parallel or parallel scratches (duplicates included) found in the
+       window;
        eval several times slower on a crossed plate (docs/bsdf.md);
        coherent mode only; docs/model.md §3.4).
    * - depth_phase

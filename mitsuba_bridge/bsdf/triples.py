@@ -22,13 +22,22 @@ pieces C whose strip meets the parallelogram P_AB and that
 
 * hold the foot point of the crossing on their centre line (a scratch cut
   into pieces counts once);
-* have a larger direction angle (mod π, local frame) than A and B: an overlap
-  belongs to the pair of its two lines of lowest angle, so it is counted once;
-* make pairs with A and B that the tables correct: |sin| >=
-  ``crossings.MIN_SINE`` in UV.
+* are not visited from another pair: an overlap belongs to one of its
+  crossing pairs (|sin| >= ``crossings.MIN_SINE`` in UV, the pairs the
+  tables list), the lowest in the order of keys (direction angle mod π in
+  the local frame, then piece index) that compares a pair's higher key
+  first, then its lower.  With A's key below B's a third line C is kept if
+  it crosses both and its key is above B's; if it crosses B only (nearly
+  parallel to A, whose pair parallel.py corrects) and its key is above A's;
+  if it crosses A only and its key is above B's; if it crosses neither,
+  always (A and B are its only crossing pair).
 
-Every subset of the kept lines whose own pairs the tables correct (|sin| in
-UV again) is one overlap of order 2 + its size, up to ``MAX_ORDER``.  Its
+Every subset of the kept lines is one overlap of order 2 + its size, up to
+``MAX_ORDER``, unless two of its lines make a crossing pair lower than
+(A, B) (both keys below B's).  With ``with_parallel`` off (the model
+without parallel.py's term) only lines crossing A and B and each other
+are kept, the key above both, as the overlaps with a nearly parallel pair
+would be corrected only in part.  Its
 region lies in P_AB: it is integrated over the cells of P_AB (edges ≤ σ/2)
 that every further strip reaches, each cell ∩ strips by
 :func:`.polygon.clipped_cell`.  Lengths in µm.
@@ -44,6 +53,7 @@ from .complexmath import Cx, expi
 from .crossings import MIN_SINE
 from .lookup import Grid, LocalJacobian, for_each_segment, segment_at
 from .overlap import Parallelogram, below, cell_centre, depth_plane, parallelogram
+from .parallel import consecutive, piece_ends
 from .polygon import Strip, clipped_cell
 from .segment import SegmentGeometry
 
@@ -66,6 +76,11 @@ def _angle(segment: SegmentGeometry):
     return dr.select(angle >= math.pi, angle - math.pi, angle)
 
 
+def _after(angle, piece, than_angle, than_piece):
+    """Whether key (``angle``, ``piece``) comes after (``than_angle``, ``than_piece``)."""
+    return (angle > than_angle) | ((angle == than_angle) & (piece > than_piece))
+
+
 def _uv_direction(grid: Grid, piece, active):
     tail = dr.gather(mi.Vector4f, grid.segments, 2 * piece + 1, active)
     inv = dr.rsqrt(dr.maximum(tail.x * tail.x + tail.y * tail.y, 1e-30))
@@ -73,12 +88,13 @@ def _uv_direction(grid: Grid, piece, active):
 
 
 def add_triples(grid: Grid, jac: LocalJacobian, first: SegmentGeometry, second: SegmentGeometry, first_piece,
-                second_piece, crossing_uv, xi_x, xi_y, k_z, sigma, field: tuple) -> tuple:
+                second_piece, crossing_uv, xi_x, xi_y, k_z, sigma, field: tuple, with_parallel: bool = True) -> tuple:
     """``field`` plus the terms of order 3 to MAX_ORDER of the crossing pair (``first``, ``second``).
 
     ``field`` is a pair (re, im) of spectra; ``crossing_uv`` the crossing point of the pair's centre lines
     (UV).  One grid query keeps up to ``SLOTS`` third lines; every subset of them of at most
-    ``MAX_ORDER - 2`` lines whose pairs the tables all correct is one overlap.  See the module docstring.
+    ``MAX_ORDER - 2`` lines that is not another crossing pair's is one overlap.  ``with_parallel``: the
+    overlaps with a nearly parallel pair too (the model corrects those pairs).  See the module docstring.
     """
     shape = parallelogram(first, second, sigma, HIGHER_SUB_EDGE_SIGMAS)
     half_diagonal = 0.5 * (dr.norm(mi.Vector2f(shape.e1x, shape.e1y)) * shape.n1
@@ -86,54 +102,80 @@ def add_triples(grid: Grid, jac: LocalJacobian, first: SegmentGeometry, second: 
     # every strip meeting P passes within this of the crossing point (1 % and 10 nm for float32 UV)
     radius = 1.01 * (half_diagonal + 0.5 * grid.max_width) + 0.01
     around = LocalJacobian(uv=crossing_uv, j00=jac.j00, j01=jac.j01, j10=jac.j10, j11=jac.j11)
-    floor = dr.maximum(_angle(first), _angle(second))
+    first_angle, second_angle = _angle(first), _angle(second)
+    # the pair's keys in order: (low_angle, low_piece) before (high_angle, high_piece)
+    swap = _after(first_angle, first_piece, second_angle, second_piece)
+    high_angle, high_piece = dr.select(swap, first_angle, second_angle), dr.select(swap, first_piece, second_piece)
     first_u, first_v = _uv_direction(grid, first_piece, True)
     second_u, second_v = _uv_direction(grid, second_piece, True)
+    first_ends, second_ends = piece_ends(first), piece_ends(second)
 
     def keep(near: SegmentGeometry, piece, state):
-        count, grooved, *slots = state
-        # the piece holding the foot point of the crossing on its centre line, of larger angle
+        count, grooved, above, *slots = state
+        # the piece holding the foot point of the crossing on its centre line
         foot = -near.c
         usable = (foot >= 0.0) & (foot < near.length)
         other = segment_at(grid, jac, piece, usable)
-        usable &= _angle(other) > floor
+        angle = _angle(other)
         u, v = _uv_direction(grid, piece, usable)
-        usable &= (dr.abs(first_u * v - first_v * u) >= MIN_SINE) & (dr.abs(second_u * v - second_v * u) >= MIN_SINE)
-        usable &= _meets(shape, other) & (count < SLOTS)
+        crosses_first = dr.abs(first_u * v - first_v * u) >= MIN_SINE
+        crosses_second = dr.abs(second_u * v - second_v * u) >= MIN_SINE
+        after_first = _after(angle, piece, first_angle, first_piece)
+        after_second = _after(angle, piece, second_angle, second_piece)
+        if with_parallel:  # not (other, second) nor (first, other) the overlap's pair (module docstring)
+            usable &= (~crosses_second | after_first) & (~crosses_first | after_second)
+        else:
+            usable &= crosses_first & crosses_second & after_first & after_second
+        usable &= _meets(shape, other) & (count < SLOTS) & (piece != first_piece) & (piece != second_piece)
+        if with_parallel:  # a piece consecutive to the pair's (a cut run's next piece): one line with it
+            other_ends = piece_ends(other)
+            usable &= ~consecutive(other_ends, first_ends) & ~consecutive(other_ends, second_ends)
         slots = [dr.select(usable & (count == k), piece, slot) for k, slot in enumerate(slots)]
-        grooved = dr.select(usable & near.triangular, grooved | (mi.UInt32(1) << count), grooved)
-        return (dr.select(usable, count + 1, count), grooved, *slots)
+        bit = mi.UInt32(1) << count
+        grooved = dr.select(usable & near.triangular, grooved | bit, grooved)
+        above = dr.select(usable & _after(angle, piece, high_angle, high_piece), above | bit, above)
+        return (dr.select(usable, count + 1, count), grooved, above, *slots)
 
-    empty = tuple(dr.zeros(mi.UInt32) for _ in range(SLOTS + 2))
-    count, grooved, *slots = for_each_segment(grid, around, radius, empty, keep, mi.Bool(True))
+    empty = tuple(dr.zeros(mi.UInt32) for _ in range(SLOTS + 3))
+    count, grooved, above, *slots = for_each_segment(grid, around, radius, empty, keep, mi.Bool(True))
     # triples (the common case) with three strips per cell, V-grooves included; then the higher orders with
     # all of theirs, flat bottoms only: a pile with a V-groove stops at order 3 (docs/model.md §3.4 bounds the rest)
-    field = _add_subsets(grid, jac, shape, first, second, count, slots, 1, 1, xi_x, xi_y, k_z, sigma, field)
+    field = _add_subsets(grid, jac, shape, first, second, count, slots, above, 1, 1, xi_x, xi_y, k_z, sigma, field,
+                         with_parallel=with_parallel)
     banned = dr.select(first.triangular | second.triangular, mi.UInt32((1 << SLOTS) - 1), grooved)
-    return _add_subsets(grid, jac, shape, first, second, count, slots, 2, MAX_ORDER - 2, xi_x, xi_y, k_z, sigma,
-                        field, banned)
+    return _add_subsets(grid, jac, shape, first, second, count, slots, above, 2, MAX_ORDER - 2, xi_x, xi_y, k_z,
+                        sigma, field, banned, with_parallel)
 
 
-def _add_subsets(grid, jac, shape, first, second, count, slots, smallest, largest, xi_x, xi_y, k_z, sigma, field,
-                 banned=None):
+def _add_subsets(grid, jac, shape, first, second, count, slots, above, smallest, largest, xi_x, xi_y, k_z, sigma,
+                 field, banned=None, with_parallel=True):
     """Add ``±(e^{iκ_min} - 1) ∫`` over the overlap of (first, second) with each valid subset of ``slots``
     of ``smallest`` to ``largest`` lines (none of the slots in the bit mask ``banned``); for single lines
-    where a V-groove takes part, ``∫ (e^{ik_z min h} - 1)`` (:func:`_sloped_triple`)."""
+    where a V-groove takes part, ``∫ (e^{ik_z min h} - 1)`` (:func:`_sloped_triple`).
+
+    A subset is valid unless two of its lines cross (the tables' pair) with both keys below the pair's
+    higher one (no bit of ``above``): that pair, lower than (first, second), owns the overlap.  Without
+    ``with_parallel`` its lines must cross each other too.
+    """
     spectrum = type(xi_x)
     subsets = mi.UInt32(1) << count  # masks 1 .. 2^count - 1
 
     def chosen(mask):
-        """The pieces of ``mask`` (at most ``largest``; the rest repeat the first) and how many."""
+        """The pieces of ``mask`` (at most ``largest``; the rest repeat the first), whether each is above the
+        pair's higher key, and how many."""
         picked = [dr.zeros(mi.UInt32) for _ in range(largest)]
+        high = [dr.zeros(mi.Bool) for _ in range(largest)]
         size = dr.zeros(mi.UInt32)
         for k, slot in enumerate(slots):
             bit = (mask & (1 << k)) != 0
+            is_above = (above & (1 << k)) != 0
+            high = [dr.select(bit & (size == j), is_above, h) for j, h in enumerate(high)]
             picked = [dr.select(bit & (size == j), slot, p) for j, p in enumerate(picked)]
             size = dr.select(bit, size + 1, size)
-        return picked, size
+        return picked, high, size
 
     def valid(mask):
-        picked, size = chosen(mask)
+        picked, high, size = chosen(mask)
         ok = (size >= smallest) & (size <= largest)
         if banned is not None:
             ok &= (mask & banned) == 0
@@ -141,7 +183,8 @@ def _add_subsets(grid, jac, shape, first, second, count, slots, smallest, larges
         for j in range(largest):
             for k in range(j + 1, largest):
                 (uj, vj), (uk, vk) = directions[j], directions[k]
-                ok &= (k >= size) | (dr.abs(uj * vk - vj * uk) >= MIN_SINE)
+                crossing = dr.abs(uj * vk - vj * uk) >= MIN_SINE
+                ok &= (k >= size) | ((~crossing | high[j] | high[k]) if with_parallel else crossing)
         return ok
 
     def advance(mask):  # the single lines one by one (1, 2, 4, ...), else every mask
@@ -154,7 +197,7 @@ def _add_subsets(grid, jac, shape, first, second, count, slots, smallest, larges
     def step(mask, re, im):
         mask = skip(mask)
         active = mask < subsets
-        picked, size = chosen(mask)
+        picked, _, size = chosen(mask)
         lines = [first, second]
         shallow = dr.minimum(first.depth, second.depth)
         for j, piece in enumerate(picked):

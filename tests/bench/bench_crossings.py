@@ -4,7 +4,8 @@ against the brute-force height field for the crossing sets of tests/bsdf/test_cr
 its overlaps of three and more), the height-field correction with them, and the pair terms alone against the
 pairwise inclusion–exclusion of the same raster (what they implement exactly).  With ``--v-grooves``:
 the sets with V-grooves instead, against the height field summed per direction (coarser planes); with
-``--parallel``: the nearly parallel pairs (parallel.py), the height field with and without their correction.
+``--parallel``: the nearly parallel pairs (parallel.py), the height field with and without their correction,
+and those pairs crossed by more scratches (triples.py), with and without the terms of order 3 and more.
 
     .venv/bin/python tests/bench/bench_crossings.py [--v-grooves | --parallel]
 """
@@ -50,11 +51,20 @@ def parallel():
     print("| pair | additive | height field without them | height field |")
     print("|---|---|---|---|")
     for name, scratches in tc.PARALLEL_PAIRS.items():
-        started = time.perf_counter()
-        out = tc.parallel_errors(scratches, tc.ALL_COMBOS)
-        worst = [max(v[i] for v in out.values()) for i in range(3)]
-        print(f"| {name} | {100 * worst[0]:.0f} % | {100 * worst[1]:.0f} % | {100 * worst[2]:.2f} % |"
-              f"  ({time.perf_counter() - started:.0f} s)", flush=True)
+        parallel_row(name, scratches, "parallel_overlaps")
+    print()
+    print("| a nearly parallel pair crossed | additive | height field without the terms of order 3+ | height field |")
+    print("|---|---|---|---|")
+    for name, scratches in tc.CROSSED_PARALLEL.items():
+        parallel_row(name, scratches, "triples")
+
+
+def parallel_row(name, scratches, without):
+    started = time.perf_counter()
+    out = tc.parallel_errors(scratches, tc.ALL_COMBOS, without=without)
+    worst = [max(v[i] for v in out.values()) for i in range(3)]
+    print(f"| {name} | {100 * worst[0]:.0f} % | {100 * worst[1]:.0f} % | {100 * worst[2]:.2f} % |"
+          f"  ({time.perf_counter() - started:.0f} s)", flush=True)
 
 
 def main():
