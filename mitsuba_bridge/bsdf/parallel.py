@@ -43,6 +43,7 @@ three or more that hold a nearly parallel pair and a crossing pair are
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import drjit as dr
 import mitsuba as mi
@@ -93,39 +94,51 @@ def add_parallel_overlaps(grid: Grid, jac: LocalJacobian, piece, segment: Segmen
             found = dr.select(slot == k, recent[k], found)
         return found, dr.gather(mi.Vector4f, grid.segments, 2 * found + 1)
 
-    def step(slot, re, im):
+    def step(slot, overlapping, re, im):
         other, other_tail = recent_piece(slot)
         candidate = nearly_parallel(tail, other_tail)  # the complement of the tables' pairs (crossings.py), in UV
         first = segment_at(grid, jac, other, candidate)
-        first_ends = piece_ends(first)
-        paired = candidate & ~consecutive(first_ends, own_ends)
+        paired = candidate & ~consecutive(piece_ends(first), own_ends)
         c = parallel_correction(first, segment, xi_x, xi_y, k_z, sigma, radius, paired)
-        re, im = spectrum(re + c.re), spectrum(im + c.im)
-        if with_triples:  # with each earlier slot's piece nearly parallel to both: the threefold overlap
-            def skip(earlier):  # cheap: lanes wait for each other on candidate triples only
-                def misses(earlier):
-                    _, third_tail = recent_piece(earlier)
-                    return (earlier < slot) & ~(nearly_parallel(tail, third_tail)
-                                                & nearly_parallel(other_tail, third_tail))
-                return dr.while_loop((earlier,), misses, lambda earlier: (earlier + 1,),
-                                     label="scratch_parallel_triple_skip")[0]
-
-            def triple_step(earlier, re, im):
-                third_piece, _ = recent_piece(earlier)
-                third = segment_at(grid, jac, third_piece, True)
-                third_ends = piece_ends(third)
-                usable = ~consecutive(third_ends, own_ends) & ~consecutive(third_ends, first_ends)
-                c = parallel_correction(first, segment, xi_x, xi_y, k_z, sigma, radius, usable, third)
-                return skip(earlier + 1), spectrum(re + c.re), spectrum(im + c.im)
-
-            start = skip(dr.select(paired, mi.UInt32(0), slot))
-            _, re, im = dr.while_loop((start, re, im), lambda earlier, re, im: earlier < slot, triple_step,
-                                      label="scratch_parallel_triples")
-        return slot + 1, re, im
+        # (the pair term's own span: the slots whose pair overlaps, for the triples below)
+        overlaps = overlap_span(first, segment, sigma, radius, paired).active
+        overlapping = dr.select(overlaps, overlapping | (mi.UInt32(1) << slot), overlapping)
+        return slot + 1, overlapping, spectrum(re + c.re), spectrum(im + c.im)
 
     slots = dr.minimum(seen, len(recent))
-    _, re, im = dr.while_loop((dr.zeros(mi.UInt32), field[0], field[1]), lambda slot, re, im: slot < slots, step,
-                              label="scratch_parallel_pairs")
+    _, overlapping, re, im = dr.while_loop((dr.zeros(mi.UInt32), dr.zeros(mi.UInt32), field[0], field[1]),
+                                           lambda slot, overlapping, re, im: slot < slots, step,
+                                           label="scratch_parallel_pairs")
+    if with_triples:  # two overlapping slots nearly parallel to each other: the threefold overlap, once
+        count = len(recent)
+
+        def advance(later, earlier_bits):
+            """The next slot ``later`` whose pair overlaps and that has overlapping slots below it (the rest of
+            them in ``earlier_bits``), where ``earlier_bits`` is used up; ``count`` and 0 after the last."""
+            def next_later(later, earlier_bits):
+                above = overlapping & ~((mi.UInt32(2) << later) - 1)
+                later = dr.select(above != 0, dr.tzcnt(above), count)
+                return later, dr.select(above != 0, overlapping & ((mi.UInt32(1) << later) - 1), 0)
+
+            return dr.while_loop((later, earlier_bits), lambda later, bits: (bits == 0) & (later < count),
+                                 next_later, label="scratch_parallel_triple_next")
+
+        def triple_step(later, earlier_bits, re, im):
+            earlier = dr.tzcnt(earlier_bits)
+            first_piece, first_tail = recent_piece(later)
+            third_piece, third_tail = recent_piece(earlier)
+            first, third = segment_at(grid, jac, first_piece, True), segment_at(grid, jac, third_piece, True)
+            third_ends = piece_ends(third)
+            usable = (nearly_parallel(first_tail, third_tail) & ~consecutive(third_ends, own_ends)
+                      & ~consecutive(third_ends, piece_ends(first)))
+            c = parallel_correction(first, segment, xi_x, xi_y, k_z, sigma, radius, usable, third)
+            later, earlier_bits = advance(later, earlier_bits & (earlier_bits - 1))
+            return later, earlier_bits, spectrum(re + c.re), spectrum(im + c.im)
+
+        lowest = dr.select(overlapping != 0, dr.tzcnt(overlapping), count)  # (no slot below it)
+        later, earlier_bits = advance(lowest, dr.zeros(mi.UInt32))
+        _, _, re, im = dr.while_loop((later, earlier_bits, re, im), lambda later, bits, re, im: bits != 0,
+                                     triple_step, label="scratch_parallel_triples")
     here = seen % len(recent)
     recent = tuple(dr.select(here == k, piece, recent[k]) for k in range(len(recent)))
     return seen + 1, recent, (re, im)
@@ -170,36 +183,9 @@ def parallel_correction(first: SegmentGeometry, second: SegmentGeometry, xi_x, x
     ax, ay = first.dx, first.dy
     nx, ny = -ay, ax
     bx, by = second.dx, second.dy
-    cosine = ax * bx + ay * by
-    sine = ax * by - ay * bx  # n_1·d_2
-    active = active & (dr.abs(cosine) > 0.5)  # (a strongly sheared UV map: no longer nearly parallel here)
-    cosine = dr.select(active, cosine, 1.0)
-    slope = sine / cosine  # du/dt of the second centre line in the first's frame
-    # the second's start in the first's frame (t along d_1 from x0's foot point, u across)
-    b0x, b0y, _, _ = piece_ends(second)
-    t_b0, u_b0 = ax * b0x + ay * b0y, nx * b0x + ny * b0y
-    t_b1 = t_b0 + second.length * cosine
-    half_b = 0.5 * second.width / dr.abs(cosine)  # the second strip's half extent across, at fixed t
+    span = overlap_span(first, second, sigma, radius, active)
+    active, t_lo, t_hi, t_b0, u_b0, slope, half_b, pad, sine = span
     half_a = 0.5 * first.width
-    reach = half_a + half_b
-    # t where the strips meet: |u_2(t) - a⊥_1| <= reach
-    flat = dr.abs(slope) < 1e-7
-    inv_slope = dr.rcp(dr.select(flat, 1.0, slope))
-    meet1 = t_b0 + (first.a_perp - reach - u_b0) * inv_slope
-    meet2 = t_b0 + (first.a_perp + reach - u_b0) * inv_slope
-    always = dr.abs(u_b0 - first.a_perp) <= reach
-    far = 1e30
-    meet_lo = dr.select(flat, dr.select(always, -far, far), dr.minimum(meet1, meet2))
-    meet_hi = dr.select(flat, dr.select(always, far, -far), dr.maximum(meet1, meet2))
-    # (bounds that come from the second piece are padded: its own strips clip the cells, and a cell edge on
-    # one of their lines, computed otherwise, would leave the polygon's edge to rounding; polygon.TIE_UM
-    # settles only lines that agree to 1e-5 µm)
-    pad = PAD_SIGMAS * sigma
-    corner = 0.5 * second.width * dr.abs(sine) + pad  # the second's square ends reach this far past its centre line
-    t_lo = dr.maximum(dr.maximum(first.c, dr.minimum(t_b0, t_b1) - corner), dr.maximum(-radius, meet_lo - pad))
-    t_hi = dr.minimum(dr.minimum(first.c + first.length, dr.maximum(t_b0, t_b1) + corner),
-                      dr.minimum(radius, meet_hi + pad))
-    active &= t_hi > t_lo
     sub_edge = SUB_EDGE_SIGMAS * sigma
     along = dr.select(active, dr.clip(dr.ceil((t_hi - t_lo) / sub_edge), 1.0, MAX_ALONG), 0.0)
     step_t = (t_hi - t_lo) / dr.maximum(along, 1.0)
@@ -286,3 +272,54 @@ def parallel_correction(first: SegmentGeometry, second: SegmentGeometry, xi_x, x
     _, re, im = dr.while_loop((mi.UInt32(0), zero, zero), lambda index, re, im: index < sloped_cells, sloped_step,
                               label="scratch_parallel_sloped")
     return flat + Cx(re, im)
+
+
+class OverlapSpan(NamedTuple):
+    """Where two nearly parallel pieces overlap along the first (:func:`overlap_span`)."""
+
+    active: object  #: whether they overlap within the window
+    t_lo: object  #: the overlap's extent along the first, from x0's foot point (µm)
+    t_hi: object
+    t_b0: object  #: the second's start in the first's frame: along, across
+    u_b0: object
+    slope: object  #: du/dt of the second centre line in the first's frame
+    half_b: object  #: the second strip's half extent across, at fixed t
+    pad: object  #: the padding of bounds the second piece sets
+    sine: object  #: n_1·d_2
+
+
+def overlap_span(first: SegmentGeometry, second: SegmentGeometry, sigma, radius, active) -> OverlapSpan:
+    """The t-range (along the first, |t| <= ``radius``) where the rectangles of two nearly parallel pieces
+    overlap (module docstring); ``active`` False where they do not."""
+    ax, ay = first.dx, first.dy
+    nx, ny = -ay, ax
+    bx, by = second.dx, second.dy
+    cosine = ax * bx + ay * by
+    sine = ax * by - ay * bx  # n_1·d_2
+    active = active & (dr.abs(cosine) > 0.5)  # (a strongly sheared UV map: no longer nearly parallel here)
+    cosine = dr.select(active, cosine, 1.0)
+    slope = sine / cosine  # du/dt of the second centre line in the first's frame
+    # the second's start in the first's frame (t along d_1 from x0's foot point, u across)
+    b0x, b0y, _, _ = piece_ends(second)
+    t_b0, u_b0 = ax * b0x + ay * b0y, nx * b0x + ny * b0y
+    t_b1 = t_b0 + second.length * cosine
+    half_b = 0.5 * second.width / dr.abs(cosine)  # the second strip's half extent across, at fixed t
+    reach = 0.5 * first.width + half_b
+    # t where the strips meet: |u_2(t) - a⊥_1| <= reach
+    flat = dr.abs(slope) < 1e-7
+    inv_slope = dr.rcp(dr.select(flat, 1.0, slope))
+    meet1 = t_b0 + (first.a_perp - reach - u_b0) * inv_slope
+    meet2 = t_b0 + (first.a_perp + reach - u_b0) * inv_slope
+    always = dr.abs(u_b0 - first.a_perp) <= reach
+    far = 1e30
+    meet_lo = dr.select(flat, dr.select(always, -far, far), dr.minimum(meet1, meet2))
+    meet_hi = dr.select(flat, dr.select(always, far, -far), dr.maximum(meet1, meet2))
+    # (bounds that come from the second piece are padded: its own strips clip the cells, and a cell edge on
+    # one of their lines, computed otherwise, would leave the polygon's edge to rounding; polygon.TIE_UM
+    # settles only lines that agree to 1e-5 µm)
+    pad = PAD_SIGMAS * sigma
+    corner = 0.5 * second.width * dr.abs(sine) + pad  # the second's square ends reach this far past its centre line
+    t_lo = dr.maximum(dr.maximum(first.c, dr.minimum(t_b0, t_b1) - corner), dr.maximum(-radius, meet_lo - pad))
+    t_hi = dr.minimum(dr.minimum(first.c + first.length, dr.maximum(t_b0, t_b1) + corner),
+                      dr.minimum(radius, meet_hi + pad))
+    return OverlapSpan(active & (t_hi > t_lo), t_lo, t_hi, t_b0, u_b0, slope, half_b, pad, sine)
