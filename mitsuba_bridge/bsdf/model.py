@@ -226,7 +226,10 @@ class Model:
                     a, b = spectrum(a + s.re), spectrum(b + s.im)
                     if self.height_field:
                         def add_crossing(partner, partner_piece, crossing_uv, field):
-                            c = crossing_correction(segment, partner, xi_x, xi_y, k_z, sigma)
+                            # (clipped where a groove ends inside the overlap: needs the runs' table)
+                            runs = ((self._runs_on(segment, piece), self._runs_on(partner, partner_piece))
+                                    if self.grid.continuation is not None else (None, None))
+                            c = crossing_correction(segment, partner, xi_x, xi_y, k_z, sigma, *runs)
                             field = spectrum(field[0] + c.re), spectrum(field[1] + c.im)
                             if self.triples:
                                 field = add_triples(self.grid, jac, segment, partner, piece, partner_piece,

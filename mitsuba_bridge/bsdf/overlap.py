@@ -23,7 +23,14 @@ Where a V-groove takes part the depths vary across P and the correction is
 the sum's excess is the shallower one's transfer function): the cells split
 the V at its centre line, so both depths are planes over a cell, and the
 line h_1 = h_2 cuts it into two convex polygons with a linear phase each
-(:func:`_sloped_correction`).  Lengths in µm.
+(:func:`_sloped_correction`).
+
+Where a groove ends inside P (a crossing next to a scratch's end) the overlap
+ends there too: with the grooves' runs (how far each runs straight on past its
+piece, :func:`.tables.continuations`, so that the pieces a long scratch is cut
+into do not end it), :func:`run_ends` gives a band along each groove, and where
+one cuts P the cells are clipped polygons of the cell strips and both bands.
+Lengths in µm.
 """
 from __future__ import annotations
 
@@ -38,7 +45,8 @@ from .polygon import Strip, clipped_cell
 from .profiles import MIN_WIDTH_UM
 from .segment import SegmentGeometry
 
-__all__ = ["Parallelogram", "below", "cell_centre", "crossing_correction", "depth_plane", "parallelogram"]
+__all__ = ["Parallelogram", "RunEnd", "below", "cell_centre", "crossing_correction", "depth_plane", "parallelogram",
+           "run_ends"]
 
 #: The overlap is cut into n_1 × n_2 sub-parallelograms with edges at most this many σ long, each with
 #: its own window expansion: the neglected curvature then stays below ~1 % (docs/model.md §3.4).
@@ -95,12 +103,23 @@ def cell_centre(shape: Parallelogram, index, columns):
     return shape.px + f1 * shape.e1x + f2 * shape.e2x, shape.py + f1 * shape.e1y + f2 * shape.e2y
 
 
-def crossing_correction(first: SegmentGeometry, second: SegmentGeometry, xi_x, xi_y, k_z, sigma) -> Cx:
+def crossing_correction(first: SegmentGeometry, second: SegmentGeometry, xi_x, xi_y, k_z, sigma,
+                        first_run=None, second_run=None) -> Cx:
     """``C(ξ)`` of a crossing pair, per wavelength: flat-bottomed pairs as in the module docstring, pairs
-    with a V-groove by :func:`_sloped_correction` (each costs only in SIMD packets that hold one)."""
+    with a V-groove by :func:`_sloped_correction` (each costs only in SIMD packets that hold one).
+
+    ``first_run``, ``second_run``: how far (µm) each groove runs straight on before its piece's start and
+    after its end (:func:`.tables.continuations`); where a groove ends inside P (a crossing next to a
+    scratch's end), the flat pair's cells are clipped to the grooves' rectangles (:func:`run_ends`)."""
     shape = parallelogram(first, second, sigma)
     grooved = first.triangular | second.triangular
-    cells = dr.select(grooved, 0, mi.UInt32(shape.n1 * shape.n2))
+    ends = None
+    if first_run is not None:
+        ends, cut_any = run_ends(shape, first, second, first_run, second_run)
+        cut = cut_any & ~grooved
+    else:
+        cut = dr.zeros(mi.Bool)
+    cells = dr.select(grooved | cut, 0, mi.UInt32(shape.n1 * shape.n2))
     columns = dr.maximum(mi.UInt32(shape.n1), 1)
 
     def step(index, re, im):
@@ -111,9 +130,51 @@ def crossing_correction(first: SegmentGeometry, second: SegmentGeometry, xi_x, x
     zero = dr.zeros(type(xi_x))
     _, re, im = dr.while_loop((mi.UInt32(0), zero, zero), lambda index, re, im: index < cells, step,
                               label="scratch_overlap")
+    if ends is not None:  # cells cut by a groove's end: clipped polygons (only packets holding one pay)
+        cut_cells = dr.select(cut, mi.UInt32(shape.n1 * shape.n2), 0)
+        half1, half2 = 0.5 * first.width / shape.n1, 0.5 * second.width / shape.n2
+
+        def clipped_step(index, re, im):
+            cx, cy = cell_centre(shape, index, columns)
+            strips = [Strip(-first.dy, first.dx, 0.0, half1), Strip(-second.dy, second.dx, 0.0, half2)]
+            term = clipped_cell(strips + [end.at(cx, cy) for end in ends], cx, cy, xi_x, xi_y, sigma)
+            return index + 1, type(xi_x)(re + term.re), type(xi_x)(im + term.im)
+
+        _, re, im = dr.while_loop((mi.UInt32(0), re, im), lambda index, re, im: index < cut_cells, clipped_step,
+                                  label="scratch_overlap_clipped")
     shallow = k_z * dr.minimum(first.depth, second.depth)
     flat = -((expi(shallow) - 1.0) * Cx(re, im))
-    return flat + _sloped_correction(first, second, shape, grooved, xi_x, xi_y, k_z, sigma)
+    return flat + _sloped_correction(first, second, shape, grooved, xi_x, xi_y, k_z, sigma, ends,
+                                     None if ends is None else cut_any & grooved)
+
+
+class RunEnd(NamedTuple):
+    """The band of a groove's run along its direction: ``|d·x - middle| <= half`` (local frame, µm)."""
+
+    dx: object
+    dy: object
+    middle: object
+    half: object
+
+    def at(self, cx, cy) -> Strip:
+        """The band as a :class:`.polygon.Strip` relative to the cell centre ``c``."""
+        return Strip(self.dx, self.dy, self.middle - (self.dx * cx + self.dy * cy), self.half)
+
+
+def run_ends(shape: Parallelogram, first: SegmentGeometry, second: SegmentGeometry, first_run, second_run):
+    """``([RunEnd, RunEnd], cut)``: the bands along each groove between its run's ends (the piece's start
+    minus ``run[0]`` µm, its end plus ``run[1]``), and whether one of them cuts the parallelogram (a
+    crossing next to a scratch's end: the overlap ends there too)."""
+    ends, cut = [], dr.zeros(mi.Bool)
+    full1x, full1y = shape.e1x * shape.n1, shape.e1y * shape.n1  # the whole edges E_1, E_2
+    full2x, full2y = shape.e2x * shape.n2, shape.e2y * shape.n2
+    for line, (before, after) in ((first, first_run), (second, second_run)):
+        low, high = line.c - before, line.c + line.length + after
+        centre = line.dx * shape.px + line.dy * shape.py
+        reach = 0.5 * (dr.abs(line.dx * full1x + line.dy * full1y) + dr.abs(line.dx * full2x + line.dy * full2y))
+        cut |= (centre - reach < low) | (centre + reach > high)
+        ends.append(RunEnd(line.dx, line.dy, 0.5 * (low + high), 0.5 * (high - low)))
+    return ends, cut
 
 
 def _cell_integral(shape: Parallelogram, cx, cy, xi_x, xi_y, sigma) -> Cx:
@@ -162,13 +223,14 @@ def below(lower, upper, reach):
 
 
 def _sloped_correction(first: SegmentGeometry, second: SegmentGeometry, shape: Parallelogram, active,
-                       xi_x, xi_y, k_z, sigma) -> Cx:
+                       xi_x, xi_y, k_z, sigma, ends=None, cut=None) -> Cx:
     """``C(ξ) = -∫_P (e^{ik_z min(h_1, h_2)} - 1) w e^{-2πiξ·x}`` where a depth varies across P (docs/model.md §3.4).
 
     On a cell both depths are planes (:func:`depth_plane`); the line h_1 = h_2 cuts it into Q_1 (h_1 ≤ h_2)
     and Q_2, and over each ``e^{ik_z h}`` with h = h(c) + ∇h·(x - c) is a shift of the frequency by
     k_z ∇h / 2π, so ``∫_Q e^{ik_z h} w e^{-2πiξ·x} = e^{ik_z (h(c) - ∇h·c)} ∫_Q w e^{-2πiξ'·x}``, the clipped
-    cell of :mod:`.polygon`.  The -1 is the whole cell's integral.
+    cell of :mod:`.polygon`.  The -1 is the whole cell's integral.  Where ``cut`` (a groove ends inside P:
+    :func:`run_ends`), every cell is clipped to the bands ``ends`` too, the -1 included.
     """
     cells = dr.select(active, mi.UInt32(shape.n1 * shape.n2), 0)
     columns = dr.maximum(mi.UInt32(shape.n1), 1)
@@ -190,8 +252,10 @@ def _sloped_correction(first: SegmentGeometry, second: SegmentGeometry, shape: P
         phase1, phase2 = k_z * (h1 - g1x * cx - g1y * cy), k_z * (h2 - g2x * cx - g2y * cy)
 
         def split(cx, cy):
-            """The line h_1 = h_2 crosses the cell: two clipped polygons."""
+            """The line h_1 = h_2 crosses the cell (or a groove's end does): two clipped polygons."""
             cell = [Strip(-first.dy, first.dx, 0.0, half1), Strip(-second.dy, second.dx, 0.0, half2)]
+            if ends is not None:
+                cell += [end.at(cx, cy) for end in ends]
             lower = clipped_cell(cell + [lower_half], cx, cy,
                                  spectrum(xi_x - scale * g1x), spectrum(xi_y - scale * g1y), sigma)
             upper = clipped_cell(cell + [upper_half], cx, cy,
@@ -211,8 +275,23 @@ def _sloped_correction(first: SegmentGeometry, second: SegmentGeometry, shape: P
         # h_1 - h_2 keeps its sign over the cell where its value at the centre exceeds its change to the corners
         crossed = dr.abs(level) < 0.5 * (dr.abs(gx * shape.e1x + gy * shape.e1y)
                                          + dr.abs(gx * shape.e2x + gy * shape.e2y))
+        if cut is not None:
+            crossed |= cut
         re_cut, im_cut = dr.if_stmt((cx, cy), crossed, split, whole, label="scratch_overlap_split")
-        term = Cx(re_cut, im_cut) - _cell_integral(shape, cx, cy, xi_x, xi_y, sigma)
+        if cut is None:
+            term = Cx(re_cut, im_cut) - _cell_integral(shape, cx, cy, xi_x, xi_y, sigma)
+        else:
+            def clipped(cx, cy):
+                strips = [Strip(-first.dy, first.dx, 0.0, half1), Strip(-second.dy, second.dx, 0.0, half2)]
+                whole_cell = clipped_cell(strips + [end.at(cx, cy) for end in ends], cx, cy, xi_x, xi_y, sigma)
+                return whole_cell.re, whole_cell.im
+
+            def unclipped(cx, cy):
+                whole_cell = _cell_integral(shape, cx, cy, xi_x, xi_y, sigma)
+                return whole_cell.re, whole_cell.im
+
+            minus = dr.if_stmt((cx, cy), cut, clipped, unclipped, label="scratch_overlap_sloped_end")
+            term = Cx(re_cut, im_cut) - Cx(*minus)
         return index + 1, spectrum(re - term.re), spectrum(im - term.im)
 
     zero = dr.zeros(spectrum)

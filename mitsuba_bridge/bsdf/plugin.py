@@ -233,7 +233,9 @@ def _make_class() -> type:
             self._set_scratches(scratches)
 
         def _set_scratches(self, scratches):
-            periodic, continuation = Model.sums_families(self.coherent, self.depth_phase), not self.coherent
+            # the grooves' runs past their pieces: the incoherent sums and the height field's crossings use them
+            periodic = Model.sums_families(self.coherent, self.depth_phase)
+            continuation = not self.coherent or self._height_field
             previous = getattr(self, "table_cache", None)
 
             def build():
