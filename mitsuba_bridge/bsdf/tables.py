@@ -48,6 +48,7 @@ load in well under 2 GB).
 """
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -226,16 +227,26 @@ def continuations(a, b, segments, lattice=None) -> np.ndarray:
         """(piece, the piece its groove runs straight on into) for the ends of one chunk of pieces."""
         mine = np.arange(first, min(first + CHUNK, count))
         ends = end_keys(b[mine], lattice)
-        at = np.minimum(np.searchsorted(sorted_keys, ends), count - 1)
-        follower = order[at]
-        e, e_next = b[mine] - a[mine], b[follower] - a[follower]
-        size = np.hypot(e[:, 0], e[:, 1]) * np.hypot(e_next[:, 0], e_next[:, 1])
-        sine_times_size = np.abs(e[:, 0] * e_next[:, 1] - e[:, 1] * e_next[:, 0])
-        forward = np.einsum("ij,ij->i", e, e_next) > 0
-        straight = (sine_times_size < STRAIGHT_ON_SIN * np.maximum(size, 1e-300)) & forward
-        same = (segments[mine, 6] == segments[follower, 6]) & (segments[mine, 7] == segments[follower, 7])
-        joined = (sorted_keys[at] == ends) & straight & same & (follower != mine)
-        return mine[joined], follower[joined]
+        at = np.searchsorted(sorted_keys, ends)
+        e = b[mine] - a[mine]
+        follower = np.full(len(mine), -1, np.int64)
+        # every piece starting where this one ends, in piece order, until one runs straight on (several
+        # start there where scratches are cut at one point, e.g. two crossing there)
+        for offset in itertools.count():
+            place = np.minimum(at + offset, count - 1)
+            candidate = (follower < 0) & (at + offset < count) & (sorted_keys[place] == ends)
+            if not candidate.any():
+                break
+            following = order[place]
+            e_next = b[following] - a[following]
+            size = np.hypot(e[:, 0], e[:, 1]) * np.hypot(e_next[:, 0], e_next[:, 1])
+            sine_times_size = np.abs(e[:, 0] * e_next[:, 1] - e[:, 1] * e_next[:, 0])
+            forward = np.einsum("ij,ij->i", e, e_next) > 0
+            straight = (sine_times_size < STRAIGHT_ON_SIN * np.maximum(size, 1e-300)) & forward
+            same = (segments[mine, 6] == segments[following, 6]) & (segments[mine, 7] == segments[following, 7])
+            joined = candidate & straight & same & (following != mine)
+            follower[joined] = following[joined]
+        return mine[follower >= 0], follower[follower >= 0]
 
     # chunks of ends bound the temporaries; each writes its own pieces' successors
     for pieces, followers in ordered_map(joins, range(0, count, CHUNK)):

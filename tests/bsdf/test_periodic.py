@@ -266,6 +266,11 @@ def test07_pieces_that_run_straight_on_are_joined():
                                                          depth=1e-7))[0]
     pieces = long.piece_count
     assert pieces > 1 and np.count_nonzero(long.continuation[:, 1]) == pieces - 1
+    # two long scratches crossing where both are cut (several pieces start at one point): each joins its own
+    crossing = tables.build_sorted(ScratchSet.from_polylines([np.array([[0.0, 0.5], [1.0, 0.5]]),
+                                                              np.array([[0.0, 0.0], [1.0, 1.0]])],
+                                                             width=1e-6, depth=1e-7))[0]
+    assert np.count_nonzero(crossing.continuation[:, 1]) == crossing.piece_count - 2
 
 
 def test08_the_chi2_gratings_of_test_sampling_are_families():
