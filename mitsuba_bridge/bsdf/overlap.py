@@ -45,8 +45,8 @@ from .polygon import Strip, clipped_cell
 from .profiles import MIN_WIDTH_UM
 from .segment import SegmentGeometry
 
-__all__ = ["Parallelogram", "RunEnd", "below", "cell_centre", "crossing_correction", "depth_plane", "parallelogram",
-           "run_ends"]
+__all__ = ["Parallelogram", "RunEnd", "below", "cell_centre", "cell_strips", "crossing_correction", "depth_plane",
+           "parallelogram", "run_ends"]
 
 #: The overlap is cut into n_1 × n_2 sub-parallelograms with edges at most this many σ long, each with
 #: its own window expansion: the neglected curvature then stays below ~1 % (docs/model.md §3.4).
@@ -110,7 +110,7 @@ def crossing_correction(first: SegmentGeometry, second: SegmentGeometry, xi_x, x
 
     ``first_run``, ``second_run``: how far (µm) each groove runs straight on before its piece's start and
     after its end (:func:`.tables.continuations`); where a groove ends inside P (a crossing next to a
-    scratch's end), the flat pair's cells are clipped to the grooves' rectangles (:func:`run_ends`)."""
+    scratch's end), the pair's cells are clipped to the grooves' rectangles (:func:`run_ends`)."""
     shape = parallelogram(first, second, sigma)
     grooved = first.triangular | second.triangular
     ends = None
@@ -132,12 +132,11 @@ def crossing_correction(first: SegmentGeometry, second: SegmentGeometry, xi_x, x
                               label="scratch_overlap")
     if ends is not None:  # cells cut by a groove's end: clipped polygons (only packets holding one pay)
         cut_cells = dr.select(cut, mi.UInt32(shape.n1 * shape.n2), 0)
-        half1, half2 = 0.5 * first.width / shape.n1, 0.5 * second.width / shape.n2
 
         def clipped_step(index, re, im):
             cx, cy = cell_centre(shape, index, columns)
-            strips = [Strip(-first.dy, first.dx, 0.0, half1), Strip(-second.dy, second.dx, 0.0, half2)]
-            term = clipped_cell(strips + [end.at(cx, cy) for end in ends], cx, cy, xi_x, xi_y, sigma)
+            strips = cell_strips(shape, first, second) + [end.at(cx, cy) for end in ends]
+            term = clipped_cell(strips, cx, cy, xi_x, xi_y, sigma)
             return index + 1, type(xi_x)(re + term.re), type(xi_x)(im + term.im)
 
         _, re, im = dr.while_loop((mi.UInt32(0), re, im), lambda index, re, im: index < cut_cells, clipped_step,
@@ -146,6 +145,12 @@ def crossing_correction(first: SegmentGeometry, second: SegmentGeometry, xi_x, x
     flat = -((expi(shallow) - 1.0) * Cx(re, im))
     return flat + _sloped_correction(first, second, shape, grooved, xi_x, xi_y, k_z, sigma, ends,
                                      None if ends is None else cut_any & grooved)
+
+
+def cell_strips(shape: Parallelogram, first: SegmentGeometry, second: SegmentGeometry) -> list:
+    """A cell of ``shape`` as two :class:`.polygon.Strip` relative to its centre (a 1/n_k slice of each strip)."""
+    return [Strip(-first.dy, first.dx, 0.0, 0.5 * first.width / shape.n1),
+            Strip(-second.dy, second.dx, 0.0, 0.5 * second.width / shape.n2)]
 
 
 class RunEnd(NamedTuple):
@@ -234,8 +239,6 @@ def _sloped_correction(first: SegmentGeometry, second: SegmentGeometry, shape: P
     """
     cells = dr.select(active, mi.UInt32(shape.n1 * shape.n2), 0)
     columns = dr.maximum(mi.UInt32(shape.n1), 1)
-    half1 = 0.5 * first.width / shape.n1
-    half2 = 0.5 * second.width / shape.n2
     # every point of a cell lies within reach/2 of its centre
     reach = dr.norm(mi.Vector2f(shape.e1x, shape.e1y)) + dr.norm(mi.Vector2f(shape.e2x, shape.e2y))
     spectrum = type(xi_x)
@@ -253,7 +256,7 @@ def _sloped_correction(first: SegmentGeometry, second: SegmentGeometry, shape: P
 
         def split(cx, cy):
             """The line h_1 = h_2 crosses the cell (or a groove's end does): two clipped polygons."""
-            cell = [Strip(-first.dy, first.dx, 0.0, half1), Strip(-second.dy, second.dx, 0.0, half2)]
+            cell = cell_strips(shape, first, second)
             if ends is not None:
                 cell += [end.at(cx, cy) for end in ends]
             lower = clipped_cell(cell + [lower_half], cx, cy,
@@ -282,8 +285,8 @@ def _sloped_correction(first: SegmentGeometry, second: SegmentGeometry, shape: P
             term = Cx(re_cut, im_cut) - _cell_integral(shape, cx, cy, xi_x, xi_y, sigma)
         else:
             def clipped(cx, cy):
-                strips = [Strip(-first.dy, first.dx, 0.0, half1), Strip(-second.dy, second.dx, 0.0, half2)]
-                whole_cell = clipped_cell(strips + [end.at(cx, cy) for end in ends], cx, cy, xi_x, xi_y, sigma)
+                strips = cell_strips(shape, first, second) + [end.at(cx, cy) for end in ends]
+                whole_cell = clipped_cell(strips, cx, cy, xi_x, xi_y, sigma)
                 return whole_cell.re, whole_cell.im
 
             def unclipped(cx, cy):
