@@ -51,7 +51,7 @@ FIGURE = Figure(
                             "groove wins where two cross) and the bounded depth phase (no groove reflects more "
                             "than falls on it; U[0, 6] µm grooves reach albedo 1.4 under the paper's phase). The "
                             "sparkle around the lamp is fainter and sparser (mean radiance of the ring below the "
-                            "lamp −2 %: most of the image is the mirror reflection, which does not change); 15× "
+                            "lamp −2 %: most of the image is the mirror reflection, which does not change); 14× "
                             "slower per sample, hence 64 spp and more noise",
                     {"crossings": "height_field", "depth_phase": "bounded"}, resolution=(960, 600), samples=64)),
 )
