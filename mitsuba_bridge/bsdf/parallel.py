@@ -99,10 +99,10 @@ def add_parallel_overlaps(grid: Grid, jac: LocalJacobian, piece, segment: Segmen
         candidate = nearly_parallel(tail, other_tail)  # the complement of the tables' pairs (crossings.py), in UV
         first = segment_at(grid, jac, other, candidate)
         paired = candidate & ~consecutive(piece_ends(first), own_ends)
-        c = parallel_correction(first, segment, xi_x, xi_y, k_z, sigma, radius, paired)
-        # (the pair term's own span: the slots whose pair overlaps, for the triples below)
-        overlaps = overlap_span(first, segment, sigma, radius, paired).active
-        overlapping = dr.select(overlaps, overlapping | (mi.UInt32(1) << slot), overlapping)
+        span = overlap_span(first, segment, sigma, radius, paired)
+        c = parallel_correction(first, segment, xi_x, xi_y, k_z, sigma, radius, paired, span=span)
+        # the slots whose pair overlaps, for the triples below
+        overlapping = dr.select(span.active, overlapping | (mi.UInt32(1) << slot), overlapping)
         return slot + 1, overlapping, spectrum(re + c.re), spectrum(im + c.im)
 
     slots = dr.minimum(seen, len(recent))
@@ -170,20 +170,22 @@ def consecutive(first_ends, second_ends):
 
 
 def parallel_correction(first: SegmentGeometry, second: SegmentGeometry, xi_x, xi_y, k_z, sigma, radius,
-                        active, third: SegmentGeometry | None = None) -> Cx:
+                        active, third: SegmentGeometry | None = None, span: OverlapSpan | None = None) -> Cx:
     """``C(ξ)`` of the overlap of two nearly parallel pieces within ``radius`` of x0 along the first
     (module docstring), per wavelength; zero where they do not overlap there or ``active`` is False.
 
     With ``third`` (a piece nearly parallel to both), the term of order 3 of the overlap of all three
     instead, ``+(e^{iκ_min} - 1) ∫``: the pair's cells clipped by the third piece's rectangle too; flat
-    bottoms only (zero where a V-groove takes part)."""
+    bottoms only (zero where a V-groove takes part).  ``span``: :func:`overlap_span` of the pair with the same
+    ``active``, where the caller has it."""
     spectrum = type(xi_x)
     if third is not None:
         active = active & ~(first.triangular | second.triangular | third.triangular)
     ax, ay = first.dx, first.dy
     nx, ny = -ay, ax
     bx, by = second.dx, second.dy
-    span = overlap_span(first, second, sigma, radius, active)
+    if span is None:
+        span = overlap_span(first, second, sigma, radius, active)
     active, t_lo, t_hi, t_b0, u_b0, slope, half_b, pad, sine = span
     half_a = 0.5 * first.width
     sub_edge = SUB_EDGE_SIGMAS * sigma
