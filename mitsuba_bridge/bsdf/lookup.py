@@ -80,6 +80,10 @@ class Grid:
     #: mi.Float, 2 per piece: how far its groove runs straight on before its start and after its end, in
     #: units of the piece's own length (:func:`.tables.continuations`; None: not uploaded)
     continuation: object = None
+    #: True / False: every piece is a V-groove / none is; None: both profiles occur.  A Python choice: a set
+    #: of one profile compiles the other's code nowhere (never run, that code still slowed every query:
+    #: 16 → 13 ns per evaluation on empty windows of the grating, docs/bsdf.md, Performance)
+    triangular: object = None
 
     @property
     def periodic(self) -> bool:
@@ -126,7 +130,14 @@ class Grid:
             cell_size=dr.opaque(mi.Float, tables.cell_size),
             family_count=0 if families is None else families.families,
             kink_count=0 if families is None else families.kinks,
-            continuation=aligned_array(mi.Float, _relative_continuation(tables).ravel()) if continuation else None)
+            continuation=aligned_array(mi.Float, _relative_continuation(tables).ravel()) if continuation else None,
+            triangular=_profiles(tables))
+
+
+def _profiles(tables: GridTables):
+    """:attr:`Grid.triangular`: True / False where every piece / no piece is a V-groove, else None."""
+    v_grooves = tables.segments[:tables.piece_count, 7] < 0.0
+    return None if v_grooves.any() and not v_grooves.all() else bool(v_grooves.any())
 
 
 def _relative_continuation(tables: GridTables) -> np.ndarray:
@@ -406,7 +417,8 @@ def segment_at(grid: Grid, jac: LocalJacobian, piece, active) -> SegmentGeometry
     inv_length = dr.rcp(dr.select(active & (length > 1e-6), length, 1.0))
     dx, dy = ex * inv_length, ey * inv_length
     return SegmentGeometry(c=dr.fma(ax, dx, ay * dy), length=length, a_perp=dr.fma(ay, dx, -ax * dy), dx=dx, dy=dy,
-                           width=tail.z, depth=dr.abs(tail.w), triangular=tail.w < 0.0)
+                           width=tail.z, depth=dr.abs(tail.w),
+                           triangular=tail.w < 0.0 if grid.triangular is None else grid.triangular)
 
 
 def _closest_point(grid: Grid, jac: LocalJacobian, piece, radius2, active):

@@ -112,11 +112,14 @@ class Model:
 
     def _family_weights(self, family, kz0):
         """The selection weights of its runs' tracks (hero wavelength): A's, and B's at a kink (else 0);
-        0 where the lane has no family."""
-        kappa = kz0 * family.depth
-        groove = sampling.groove_energy(family.triangular, kappa, self.coherent)
-        a, b = run_energies(family, self.sigma)
-        return dr.select(family.eligible, a * groove, 0.0), dr.select(family.eligible, b * groove, 0.0)
+        0 where the lane has no family (whole SIMD packets without one skip the arithmetic)."""
+        def weights(kz0):
+            groove = sampling.groove_energy(family.triangular, kz0 * family.depth, self.coherent)
+            a, b = run_energies(family, self.sigma)
+            return dr.select(family.eligible, a * groove, 0.0), dr.select(family.eligible, b * groove, 0.0)
+
+        zero = dr.zeros(mi.Float)
+        return dr.if_stmt((kz0,), family.eligible, weights, lambda kz0: (zero, zero), label="scratch_family_weights")
 
     def _family_density(self, family, w_a, w_b, xi_x, xi_y, wi, lam0, kz0):
         """``Σ weight · p_line(ξ)`` over its runs (B's only in SIMD packets holding a kink)."""
@@ -208,11 +211,14 @@ class Model:
             elif want_value:  # incoherent: (Σ|S'|², Σ ε) as the scan below sums them
                 field = dr.if_stmt((zero_f,), inside, lambda _: self._family_intensity(family, xi_x, xi_y, k_z),
                                    lambda _: (zero_s, zero_f), label="scratch_family_intensity")
-            if want_pdf:
-                w_a, w_b = self._family_weights(family, kz0)
-                energy0 = w_a + w_b
-                density0 = self._family_density(family, w_a, w_b, xi0_x, xi0_y, wi, lam0, kz0)
-                density0 = dr.select(inside, density0, 0.0)
+            if want_pdf:  # (whole SIMD packets outside every family skip it)
+                def weights(kz0):
+                    w_a, w_b = self._family_weights(family, kz0)
+                    density = self._family_density(family, w_a, w_b, xi0_x, xi0_y, wi, lam0, kz0)
+                    return w_a + w_b, dr.select(inside, density, 0.0)
+
+                energy0, density0 = dr.if_stmt((kz0,), inside, weights, lambda kz0: (zero_f, zero_f),
+                                               label="scratch_family_pdf")
         # "bounded": Σ_k e_k(ω_i), Σ_k e_k(ω_o), the albedo estimate's segment terms (docs/model.md §4.1)
         bounded = self.depth_phase == "bounded" and coherent and want_value and has_glossy
         # nearly parallel overlaps: each piece found is paired with the last RECENT_PIECES found (parallel.py)

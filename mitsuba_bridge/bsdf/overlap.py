@@ -43,7 +43,7 @@ import mitsuba as mi
 from .complexmath import Cx, expi, scaled_sinc
 from .polygon import Strip, clipped_cell
 from .profiles import MIN_WIDTH_UM
-from .segment import SegmentGeometry
+from .segment import SegmentGeometry, flat_bottomed
 
 __all__ = ["Parallelogram", "RunEnd", "below", "cell_centre", "cell_strips", "crossing_correction", "depth_plane",
            "parallelogram", "run_ends"]
@@ -116,7 +116,7 @@ def crossing_correction(first: SegmentGeometry, second: SegmentGeometry, xi_x, x
     ends = None
     if first_run is not None:
         ends, cut_any = run_ends(shape, first, second, first_run, second_run)
-        cut = cut_any & ~grooved
+        cut = cut_any & flat_bottomed(grooved)
     else:
         cut = dr.zeros(mi.Bool)
     cells = dr.select(grooved | cut, 0, mi.UInt32(shape.n1 * shape.n2))

@@ -53,7 +53,7 @@ from .crossings import MIN_SINE
 from .lookup import Grid, LocalJacobian, segment_at
 from .overlap import below, depth_plane
 from .polygon import Strip, clipped_cell
-from .segment import SegmentGeometry
+from .segment import SegmentGeometry, flat_bottomed
 
 __all__ = ["RECENT_PIECES", "SUB_EDGE_SIGMAS", "MAX_ALONG", "MAX_ACROSS", "add_parallel_overlaps",
            "parallel_correction", "piece_ends", "consecutive"]
@@ -180,7 +180,7 @@ def parallel_correction(first: SegmentGeometry, second: SegmentGeometry, xi_x, x
     ``active``, where the caller has it."""
     spectrum = type(xi_x)
     if third is not None:
-        active = active & ~(first.triangular | second.triangular | third.triangular)
+        active = active & flat_bottomed(first.triangular | second.triangular | third.triangular)
     ax, ay = first.dx, first.dy
     nx, ny = -ay, ax
     bx, by = second.dx, second.dy

@@ -62,6 +62,7 @@ from . import profiles
 from .complexmath import Cx, expi
 from .faddeeva import faddeeva
 from .references import aligned, ordered_map
+from .segment import SegmentGeometry, cross_section
 from .window import window_integral
 
 __all__ = ["PeriodicTables", "periodic_families", "Family", "find_family", "family_field", "family_intensity",
@@ -113,8 +114,13 @@ HALF_PLANE_SIGN = -1.0
 #: Families per cell (a CD cell with a chord's kink holds two).
 SLOTS = 2
 #: Floats per family: n_u, n_v, o_first, pitch | o_last, s_lo, s_hi, W | ±D, l_u, l_v, l_offset (its end
-#: line's normal into the family's side and its offset, :func:`_end_lines`; zero where none).
-FAMILY_FLOATS = 12
+#: line's normal into the family's side and its offset, :func:`_end_lines`; zero where none) | clear_before,
+#: clear_after (how far beyond its first and its last track no other piece of the cell lies, :func:`_family`), 0, 0.
+FAMILY_FLOATS = 16
+VECTORS = FAMILY_FLOATS // 4  #: (the kernel gathers a family as this many Vector4f)
+#: The clear distance (cells) stored where no other piece lies beside a family: more than any window box
+#: held by one cell needs.
+CLEAR_CELLS = 2.0
 #: References per chunk of the numpy build (bounds its temporaries, ~150 bytes per reference; the chunks
 #: run on the table build's threads, references.ordered_map).
 CHUNK_REFERENCES = 1 << 19
@@ -127,7 +133,9 @@ class PeriodicTables:
     Per family, in the cell's coordinates (cells, from its corner): the unit normal n of its tracks,
     the offset n·x of its first track and the pitch, the offset of its last track, the interval
     [s_lo, s_hi] along t = (n_v, -n_u) where all of its tracks run and no other piece lies, the
-    width (µm) and the depth (µm, negative: V-groove) of its grooves.  An empty slot has pitch 0."""
+    width (µm) and the depth (µm, negative: V-groove) of its grooves, its end line, and how far
+    beyond its first and last tracks (across them) no other piece of the cell lies.  An empty slot has
+    pitch 0."""
 
     frames: np.ndarray
     families: int  #: families in all
@@ -307,6 +315,14 @@ def _family(slot, member, t_f, other, local, a, e, t, runs_on, width, depth, chu
         bad |= _any_per_cell(~(beside | above | below), oc, cells)
         s_hi = np.minimum(s_hi, _per_cell_extreme(np.minimum, np.where(above, r_lo, np.inf), oc, cells, np.inf))
         s_lo = np.maximum(s_lo, _per_cell_extreme(np.maximum, np.where(below, r_hi, -np.inf), oc, cells, -np.inf))
+        # the nearest centre line beside the tracks on either side (an edge's window must not reach it)
+        q_lo, q_hi = np.minimum(q0, q1), np.maximum(q0, q1)
+        nearest_before = _per_cell_extreme(np.maximum, np.where(q_hi < o_first[oc], q_hi, -np.inf), oc, cells, -np.inf)
+        nearest_after = _per_cell_extreme(np.minimum, np.where(q_lo > o_last[oc], q_lo, np.inf), oc, cells, np.inf)
+        clear_before = np.minimum(o_first - nearest_before, CLEAR_CELLS)
+        clear_after = np.minimum(nearest_after - o_last, CLEAR_CELLS)
+    else:
+        clear_before = clear_after = np.full(cells, CLEAR_CELLS)
 
     keep = has & ~bad & (s_hi > s_lo) & (pitch > 0)
     # the side along the tracks where the other family lies (+1: beyond the tracks' upper ends), 0: none
@@ -327,6 +343,8 @@ def _family(slot, member, t_f, other, local, a, e, t, runs_on, width, depth, chu
     frames[target, slot, 6] = s_hi[rows]
     frames[target, slot, 7] = w[first_piece[rows]]
     frames[target, slot, 8] = d[first_piece[rows]]
+    frames[target, slot, 12] = clear_before[rows]
+    frames[target, slot, 13] = clear_after[rows]
     return _Run(keep=keep, other_side=other_side, t_f=t_f, pitch=pitch, track_cell=t_cell,
                 track_offset=t_offset, track_lo=t_lo, track_hi=t_hi)
 
@@ -454,6 +472,14 @@ class Family:
     l_x: object = None  #: mi.Float: unit normal of the kink line into A's side (local frame)
     l_y: object = None
     h: object = None  #: mi.Float: signed distance of the kink line from x0 along l (µm)
+    #: mi.Bool: the window reaches past the first or last track (an *edge*): its closed form is
+    #: ``base`` (0, or the infinite run where fewer tracks are missing than present) plus ``edge_sign``
+    #: (±1) times the sum over ``edge_tracks`` tracks at offsets ``edge_a + j · edge_step`` (µm)
+    edge: object = None
+    edge_base: object = None  #: mi.Bool: the infinite run's closed form is the base (else 0)
+    edge_a: object = None
+    edge_step: object = None
+    edge_tracks: object = None  #: mi.UInt32 (0 on lanes without an edge)
 
 
 class _Slot(NamedTuple):
@@ -471,6 +497,12 @@ class _Slot(NamedTuple):
     l_v: object
     l_offset: object
     pitch_cells: object
+    #: (own cell only) the window reaches past its first or last track, no other piece within reach:
+    #: its tracks in reach, by index from the first: lowest, highest, and the index of the last track
+    edge: object = None
+    j_lo: object = None
+    j_hi: object = None
+    last: object = None
 
 
 def find_family(grid, jac, sigma, active) -> Family:
@@ -486,13 +518,19 @@ def find_family(grid, jac, sigma, active) -> Family:
     usable = mi.Bool(active) & (dr.abs(det) > 1e-12 * norm2)
     inv_det = dr.rcp(dr.select(usable, dr.abs(det), 1.0))
     scale = inv_det * grid.inverse_cell_size  # cells per µm, times |adj(J)ᵀ·| below
-    reach = ACROSS_SIGMAS * sigma * scale
+    reach_um = ACROSS_SIGMAS * sigma
+    reach = reach_um * scale
     extent_u = reach * dr.sqrt(jac.j11 * jac.j11 + jac.j01 * jac.j01) + grid.margin
     extent_v = reach * dr.sqrt(jac.j10 * jac.j10 + jac.j00 * jac.j00) + grid.margin
     u0, u1 = dr.floor(gu - extent_u), dr.floor(gu + extent_u)
     v0, v1 = dr.floor(gv - extent_v), dr.floor(gv + extent_v)
-    usable &= ((u0 >= 0.0) & (v0 >= 0.0) & (u1 < mi.Float(grid.cells_u)) & (v1 < mi.Float(grid.cells_v))
-               & (u1 - u0 <= 1.0) & (v1 - v0 <= 1.0) & dr.isfinite(extent_u) & dr.isfinite(extent_v))
+    usable &= dr.isfinite(extent_u) & dr.isfinite(extent_v)
+    last_u, last_v = mi.Float(grid.cells_u - 1), mi.Float(grid.cells_v - 1)
+    in_grid = ((u0 >= 0.0) & (v0 >= 0.0) & (u1 <= last_u) & (v1 <= last_v) & (u1 - u0 <= 1.0) & (v1 - v0 <= 1.0))
+    # an edge's box may reach past the grid, where no centre line lies: clamped to the grid, it must lie in
+    # one cell (x0's own, the nearest cell where x0 lies outside)
+    own_box = (dr.maximum(u0, 0.0) == dr.minimum(u1, last_u)) & (dr.maximum(v0, 0.0) == dr.minimum(v1, last_v))
+    usable &= in_grid | own_box
     signed = dr.select(det >= 0.0, 1.0, -1.0)
     kinks = grid.kink_count > 0  # (a Python choice: sets without kinks compile no kink code)
 
@@ -505,10 +543,11 @@ def find_family(grid, jac, sigma, active) -> Family:
         return (n_u * dr.select(positive_u, box_u0, box_u1) + n_v * dr.select(positive_v, box_v0, box_v1),
                 n_u * dr.select(positive_u, box_u1, box_u0) + n_v * dr.select(positive_v, box_v1, box_v0))
 
-    def slot(cu, cv, k, wanted) -> _Slot:
-        """Slot k of cell (cu, cv) against the window's box clipped to that cell."""
+    def slot(cu, cv, k, wanted, edges=False) -> _Slot:
+        """Slot k of cell (cu, cv) against the window's box clipped to that cell (``edges``: x0's own cell,
+        whether the window lies at an edge of the family instead)."""
         cell = mi.UInt32(mi.Int32(cv) * grid.cells_u + mi.Int32(cu))
-        base = (cell * SLOTS + k) * 3
+        base = (cell * SLOTS + k) * VECTORS
         f0 = dr.gather(mi.Vector4f, grid.family_frames, base, wanted)  # n_u, n_v, o_first, pitch
         f1 = dr.gather(mi.Vector4f, grid.family_frames, base + 1, wanted)  # o_last, s_lo, s_hi, W
         f2 = dr.gather(mi.Vector4f, grid.family_frames, base + 2, wanted)  # ±D, l_u, l_v, l_offset
@@ -528,14 +567,28 @@ def find_family(grid, jac, sigma, active) -> Family:
         into = f0.y * f2.y - f0.x * f2.z  # t·l
         cut = across & ((f2.y != 0.0) | (f2.z != 0.0)) & dr.select(into > 0.0, above, below)
         offset = signed * (f0.z - (f0.x * du + f0.y * dv)) * micrometres_per_cell
-        return _Slot(across & below & above, cut, f0.x, f0.y, f0.w * micrometres_per_cell, offset, f1.w, f2.x,
-                     f2.y, f2.z, f2.w, f0.w)
+        found = _Slot(across & below & above, cut, f0.x, f0.y, f0.w * micrometres_per_cell, offset, f1.w, f2.x,
+                      f2.y, f2.z, f2.w, f0.w)
+        if not edges:
+            return found
+        # at an edge: the whole box in this cell, along the tracks as above, and across them clear of any
+        # other piece; the tracks in reach: |offset + signed·j·P| <= the window radius (as the scan's)
+        f3 = dr.gather(mi.Vector4f, grid.family_frames, base + 3, wanted)  # clear_before, clear_after
+        edge = (wanted & (f0.w > 0.0) & ~(across & in_grid) & below & above & own_box
+                & (box_lo >= f0.z - f3.x) & (box_hi <= f1.x + f3.y))
+        pitch = found.pitch
+        step = signed * dr.maximum(pitch, 1e-30)
+        j0, j1 = (-reach_um - offset) / step, (reach_um - offset) / step
+        last = dr.round((f1.x - f0.z) * dr.rcp(dr.maximum(f0.w, 1e-30)))
+        j_lo = dr.maximum(dr.ceil(dr.minimum(j0, j1)), 0.0)
+        j_hi = dr.minimum(dr.floor(dr.maximum(j0, j1)), last)
+        return found._replace(edge=edge, j_lo=j_lo, j_hi=j_hi, last=last)
 
     # ---- only lanes whose own cell holds a family go on (whole SIMD packets elsewhere skip the rest)
     u = dr.floor(dr.clip(gu, 0.0, mi.Float(grid.cells_u - 1)))
     v = dr.floor(dr.clip(gv, 0.0, mi.Float(grid.cells_v - 1)))
     own_cell = mi.UInt32(mi.Int32(v) * grid.cells_u + mi.Int32(u))
-    pitch_floats = [4 * ((own_cell * SLOTS + k) * 3) + 3 for k in range(SLOTS)]
+    pitch_floats = [4 * ((own_cell * SLOTS + k) * VECTORS) + 3 for k in range(SLOTS)]
     candidate = usable & ((dr.gather(mi.Float, grid.family_frames, pitch_floats[0], usable) > 0.0)
                           | (dr.gather(mi.Float, grid.family_frames, pitch_floats[1], usable) > 0.0))
 
@@ -560,10 +613,25 @@ def find_family(grid, jac, sigma, active) -> Family:
     new_corner = (u0 == u0, u1 != u0, v1 != v0, (u1 != u0) & (v1 != v0))
 
     def search(candidate):
-        first = slot(u, v, 0, candidate)
-        second = slot(u, v, 1, candidate & ~first.holds)
-        own = _Slot(*(dr.select(first.holds, a, b) for a, b in zip(first, second)))
-        eligible = own.holds & (sigma >= MIN_SIGMA_PER_PITCH * own.pitch)
+        first = slot(u, v, 0, candidate, edges=True)
+        second = slot(u, v, 1, candidate & ~first.holds, edges=True)
+        own = _pick(first.holds, first, second)
+        eligible = own.holds & in_grid & (sigma >= MIN_SIGMA_PER_PITCH * own.pitch)
+        # an edge: fewer tracks missing (lattice positions in reach beyond the first or last) than present
+        # are summed as the infinite run's closed form less those (where it applies), else the present ones
+        at_edge = ~eligible & (first.edge | second.edge)
+        edge = _pick(first.edge, first, second)
+        step = dr.select(det >= 0.0, 1.0, -1.0) * edge.pitch
+        j0, j1 = (-reach_um - edge.offset) / step, (reach_um - edge.offset) / step
+        j_min, j_max = dr.ceil(dr.minimum(j0, j1)), dr.floor(dr.maximum(j0, j1))
+        present = dr.maximum(edge.j_hi - edge.j_lo + 1.0, 0.0)
+        before, after = dr.maximum(-j_min, 0.0), dr.maximum(j_max - edge.last, 0.0)
+        subtract = (at_edge & (sigma >= MIN_SIGMA_PER_PITCH * edge.pitch) & ((before == 0.0) | (after == 0.0))
+                    & (before + after < present))
+        edge_start = dr.select(subtract, dr.select(before > 0.0, j_min, edge.last + 1.0), edge.j_lo)
+        edge_tracks = mi.UInt32(dr.select(at_edge, dr.select(subtract, before + after, present), 0.0))
+        edge_fields = (at_edge, subtract, edge.offset + edge_start * step, step, edge_tracks)
+        own = _pick(at_edge, edge, own)
 
         def neighbours(eligible):
             """Every cell of the window's box continues the run (x0's own cell matches itself)."""
@@ -580,12 +648,13 @@ def find_family(grid, jac, sigma, active) -> Family:
         eligible = dr.if_stmt((eligible,), leaves, neighbours, lambda eligible: (eligible,),
                               label="scratch_family_neighbours")[0]
         dx, dy, offset = local_run(own)
-        found = (eligible, dx, dy, own.pitch, offset, own.width, own.depth)
+        found = (eligible | at_edge, dx, dy, own.pitch, offset, own.width, own.depth) + edge_fields
         if not kinks:
             return found
         # lanes without a run of their own may lie at a kink (found in any cell of the box)
-        kink = dr.if_stmt((candidate & ~eligible,), candidate & ~eligible, at_kink, no_kink, label="scratch_kink")
-        return tuple(dr.select(kink[0], k, f) for k, f in zip(kink[:7], found)) + kink[7:]
+        wanted = candidate & in_grid & ~eligible & ~at_edge
+        kink = dr.if_stmt((wanted,), wanted, at_kink, no_kink, label="scratch_kink")
+        return tuple(dr.select(kink[0], k, f) for k, f in zip(kink[:7], found[:7])) + found[7:] + kink[7:]
 
     def at_kink(active):
         """A kink holding the window (:func:`_end_lines`).  Some cell of the box holds two runs A and B that
@@ -606,9 +675,9 @@ def find_family(grid, jac, sigma, active) -> Family:
             single = (wanted & ~pair & a.cut & ~(b.pitch_cells > 0.0) & ((a.l_u != 0.0) | (a.l_v != 0.0))
                       & (part_lo >= a.l_offset) & (sigma >= MIN_SIGMA_PER_PITCH * a.pitch))
             here = pair | single
-            run_a = a if run_a is None else _Slot(*(dr.select(here, x, y) for x, y in zip(a, run_a)))
-            b = _Slot(*(dr.select(single, x, y) for x, y in zip(a, b)))  # (a lone run's B: valid numbers, no weight)
-            run_b = b if run_b is None else _Slot(*(dr.select(here, x, y) for x, y in zip(b, run_b)))
+            run_a = a if run_a is None else _pick(here, a, run_a)
+            b = _pick(single, a, b)  # (a lone run's B: valid numbers, no weight)
+            run_b = b if run_b is None else _pick(here, b, run_b)
             ru, rv = dr.select(here, cu, ru), dr.select(here, cv, rv)
             lone = dr.select(here, single, lone)
             found = found | here
@@ -659,16 +728,24 @@ def find_family(grid, jac, sigma, active) -> Family:
     def nothing(candidate):
         zero = dr.zeros(mi.Float)
         kink = (dr.zeros(mi.Bool), dr.zeros(mi.Bool), zero, zero, zero, zero, zero, zero, zero) if kinks else ()
-        return (dr.zeros(mi.Bool), zero, zero, zero, zero, zero, zero) + kink
+        edge = (dr.zeros(mi.Bool), dr.zeros(mi.Bool), zero, zero, dr.zeros(mi.UInt32))
+        return (dr.zeros(mi.Bool), zero, zero, zero, zero, zero, zero) + edge + kink
 
     found = dr.if_stmt((candidate,), candidate, search, nothing, label="scratch_family")
     eligible, dx, dy, pitch, offset, width, depth = found[:7]
     family = Family(eligible=eligible, dx=dx, dy=dy, pitch=pitch, a0=offset,
-                    width=dr.maximum(width, profiles.MIN_WIDTH_UM), depth=dr.abs(depth), triangular=depth < 0.0)
+                    width=dr.maximum(width, profiles.MIN_WIDTH_UM), depth=dr.abs(depth),
+                    triangular=depth < 0.0 if grid.triangular is None else grid.triangular)
+    family.edge, family.edge_base, family.edge_a, family.edge_step, family.edge_tracks = found[7:12]
     if kinks:
         (family.kink, family.lone, family.b_pitch, family.b_dx, family.b_dy, family.b_a0, family.l_x, family.l_y,
-         family.h) = found[7:]
+         family.h) = found[12:]
     return family
+
+
+def _pick(mask, a: _Slot, b: _Slot) -> _Slot:
+    """``a``'s fields where ``mask``, else ``b``'s (fields that neither has stay None)."""
+    return _Slot(*(x if x is None else dr.select(mask, x, y) for x, y in zip(a, b)))
 
 
 def _on_line(other: _Slot, run: _Slot, shift_u, shift_v, sign):
@@ -712,12 +789,27 @@ def groove_transform(family: Family, mu, kappa, coherent: bool = True) -> Cx:
     return Cx(re, im)
 
 
+def _groove_intensity(family: Family, mu, kappa):
+    """``|G'(μ)|²`` of :func:`groove_transform` (``coherent=False``): for a flat bottom ``(W sinc(πμW))²``,
+    the phase e^{iκ} drops out."""
+    kind = type(mu)
+
+    def v_groove(mu, kappa):
+        return (kind(groove_transform(family, mu, kappa, coherent=False).abs2()),)
+
+    def flat(mu, kappa):
+        return (kind(dr.square(family.width * _sinc(math.pi * mu * family.width))),)
+
+    return dr.if_stmt((mu, kappa), family.triangular, v_groove, flat, label="scratch_family_groove_intensity")[0]
+
+
 def family_field(family: Family, xi_x, xi_y, k_z, sigma) -> Cx:
     """``Σ_n S_n(ξ)`` over the family's infinite run (module docstring), per wavelength; at a kink, the
     sum of its two runs, each cut by the kink line's half-plane (docs/model.md §3.5)."""
     kappa = k_z * family.depth
     kind = type(xi_x)
     full = _run_field(family, family.pitch, family.dx, family.dy, family.a0, xi_x, xi_y, kappa, sigma)
+    full = _at_edges(family, full, xi_x, xi_y, kappa, sigma, coherent=True)
     if family.kink is None:
         return full
 
@@ -761,6 +853,7 @@ def family_intensity(family: Family, xi_x, xi_y, k_z, sigma):
     kappa = k_z * family.depth
     kind = type(xi_x)
     full = _run_intensity(family, family.pitch, family.dx, family.dy, xi_x, xi_y, kappa, sigma)
+    full = _at_edges(family, full, xi_x, xi_y, kappa, sigma, coherent=False)
     if family.kink is None:
         return full
 
@@ -781,6 +874,49 @@ def family_intensity(family: Family, xi_x, xi_y, k_z, sigma):
     return dr.select(family.kink, total, full)
 
 
+def _edge_sum(family: Family, term, initial):
+    """``edge_sign × Σ term(a)`` over an edge lane's tracks, offsets ``a = edge_a + j · edge_step`` (µm), added
+    to ``initial`` (a tuple); the loop runs no turn on other lanes (SIMD packets without an edge skip it)."""
+    def body(j, *total):
+        terms = term(family.edge_a + mi.Float(j) * family.edge_step)
+        return (j + 1,) + tuple(type(t)(t + x) for t, x in zip(total, terms))
+
+    zeros = tuple(dr.zeros(type(x)) for x in initial)
+    sums = dr.while_loop((dr.zeros(mi.UInt32),) + zeros, lambda j, *total: j < family.edge_tracks, body,
+                         label="scratch_family_edge")[1:]
+    return tuple(type(x)(dr.select(family.edge_base, x - t, t)) for x, t in zip(initial, sums))
+
+
+def _at_edges(family: Family, full, xi_x, xi_y, kappa, sigma, coherent: bool):
+    """The run's sum ``full`` (field or intensity), at an edge the sum over its tracks in reach instead
+    (:func:`_edge_sum`; docs/model.md §3.5, Edges): each track a whole line across the window, its windowed
+    groove transform (:func:`.segment.cross_section`, as the scan's) times the Gaussian along."""
+    nu_par = xi_x * family.dx + xi_y * family.dy
+    nu_perp = xi_y * family.dx - xi_x * family.dy
+    kind = type(xi_x)
+    zero = dr.zeros(mi.Float)
+
+    def track(a):  # (c and length: not read across)
+        return SegmentGeometry(c=zero, length=zero, a_perp=a, dx=family.dx, dy=family.dy, width=family.width,
+                               depth=family.depth, triangular=family.triangular)
+
+    if coherent:
+        along = math.sqrt(2.0 * math.pi) * sigma * dr.exp((-2.0 * math.pi ** 2) * sigma * sigma * nu_par * nu_par)
+
+        def term(a):
+            s = cross_section(track(a), nu_perp, kappa, sigma, True)
+            return kind(s.re * along), kind(s.im * along)
+
+        re, im = _edge_sum(family, term, (full.re, full.im))
+        return Cx(dr.select(family.edge, re, full.re), dr.select(family.edge, im, full.im))
+    along2 = (2.0 * math.pi) * sigma * sigma * dr.exp((-4.0 * math.pi ** 2) * sigma * sigma * nu_par * nu_par)
+
+    def term(a):
+        return (kind(cross_section(track(a), nu_perp, kappa, sigma, False).abs2() * along2),)
+
+    return dr.select(family.edge, _edge_sum(family, term, (full,))[0], full)
+
+
 def _run_intensity(family: Family, pitch, dx, dy, xi_x, xi_y, kappa, sigma, cut=None):
     """One run's ``Σ_n |S'_n(ξ)|²`` (:func:`family_intensity`).  ``cut = (l_x, l_y, h)``: only the half-plane
     y·l >= h of each track (y = x - x0).  Track n then ends where it meets the line, at a point that
@@ -793,7 +929,7 @@ def _run_intensity(family: Family, pitch, dx, dy, xi_x, xi_y, kappa, sigma, cut=
     spread = 1.0 / (2.0 * math.pi) * dr.rcp(sigma)  # √2 × the std of η
     across = dr.zeros(type(xi_x))
     for node, weight in zip(HERMITE_NODES, HERMITE_WEIGHTS):
-        across += weight * groove_transform(family, nu_perp + node * spread, kappa, coherent=False).abs2()
+        across += weight * _groove_intensity(family, nu_perp + node * spread, kappa)
     across = across * (sigma * dr.rcp(pitch))
     if cut is None:
         return across * ((2.0 * math.pi) * sigma * sigma * dr.exp((-4.0 * math.pi ** 2) * sigma * sigma
@@ -884,6 +1020,11 @@ def run_energies(family: Family, sigma):
     e^{-a_n²/σ²}); at a kink each is cut to its side of the line (the
     squared window's share there, ½ erfc(±h/σ)), elsewhere B is 0."""
     a = _run_energy(family, family.pitch, family.a0, sigma)
+    # at an edge: each track in reach a whole line, ε = W σ√π e^{-a²/σ²} (sampling.window_energy)
+    inv = dr.rcp(sigma)
+    edge = _edge_sum(family, lambda t: (family.width * math.sqrt(math.pi) * sigma * dr.exp(-dr.square(t * inv)),),
+                     (a,))[0]
+    a = dr.select(family.edge, edge, a)
     if family.kink is None:
         return a, dr.zeros(mi.Float)
     side = 0.5 - 0.5 * dr.erf(family.h * dr.rcp(sigma))  # share of w² on A's side, y·l >= h

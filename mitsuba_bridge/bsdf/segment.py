@@ -20,7 +20,7 @@ from . import profiles
 from .complexmath import Cx
 from .window import piece_and_run_integrals, window_integral
 
-__all__ = ["SegmentGeometry", "amplitude", "frequencies", "incoherent_intensity"]
+__all__ = ["SegmentGeometry", "amplitude", "flat_bottomed", "frequencies", "incoherent_intensity"]
 
 
 class SegmentGeometry(NamedTuple):
@@ -33,7 +33,13 @@ class SegmentGeometry(NamedTuple):
     dy: object
     width: object  #: Float: W (µm)
     depth: object  #: Float: D (µm)
-    triangular: object  #: Bool: V-groove (else flat bottom)
+    #: Bool: V-groove (else flat bottom); a Python bool where the whole set has one profile (lookup.Grid)
+    triangular: object
+
+
+def flat_bottomed(triangular):
+    """``~triangular`` for a mask or a Python bool (:attr:`SegmentGeometry.triangular`)."""
+    return (not triangular) if isinstance(triangular, bool) else ~triangular
 
 
 def frequencies(segment: SegmentGeometry, xi_x, xi_y):

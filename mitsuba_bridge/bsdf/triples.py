@@ -55,7 +55,7 @@ from .lookup import Grid, LocalJacobian, for_each_segment, segment_at
 from .overlap import Parallelogram, below, cell_centre, depth_plane, parallelogram
 from .parallel import consecutive, piece_ends
 from .polygon import Strip, clipped_cell
-from .segment import SegmentGeometry
+from .segment import SegmentGeometry, flat_bottomed
 
 __all__ = ["add_triples", "MAX_ORDER", "SLOTS"]
 
@@ -211,7 +211,7 @@ def _add_subsets(grid, jac, shape, first, second, count, slots, above, smallest,
             third = lines[2]
             grooved = first.triangular | second.triangular | third.triangular
             sloped = _sloped_triple(shape, first, second, third, active & grooved, xi_x, xi_y, k_z, sigma)
-            active_flat = active & ~grooved
+            active_flat = active & flat_bottomed(grooved)
         else:
             active_flat = active
         integral = _overlap_integral(shape, lines, active_flat, xi_x, xi_y, sigma)
