@@ -360,7 +360,9 @@ def test13_v_groove_pairs_match_the_height_field_at_every_wavelength_and_inciden
     assert max(v[0] for v in out.values()) > 0.3, out
 
 
-@pytest.mark.parametrize("grooves, wavelength_nm, theta", [("all", 450.0, 0.0), ("one", 650.0, 70.0)])
+# (the mixed set compiles kernels of both profiles, ~18 s on a cold cache: under the slow marker)
+@pytest.mark.parametrize("grooves, wavelength_nm, theta",
+                         [("all", 450.0, 0.0), pytest.param("one", 650.0, 70.0, marks=pytest.mark.slow)])
 def test14_three_crossing_scratches_with_v_grooves_match_the_height_field(grooves, wavelength_nm, theta):
     """A star of three (the centre under all), all V-grooves or one among flat bottoms: the triple term
     with the minimum of three depth planes (triples._sloped_triple) within 2 % (measured 0.19-1.14 %; the
@@ -509,7 +511,8 @@ def test18b_nearly_parallel_pairs_at_every_wavelength_and_incidence(name):
     assert min(v[0] for v in out.values()) > 0.1, out
 
 
-@pytest.mark.parametrize("profile", [ref.RECT, ref.TRI])
+# (the V-groove case compiles its own kernels, ~19 s on a cold cache: under the slow marker)
+@pytest.mark.parametrize("profile", [ref.RECT, pytest.param(ref.TRI, marks=pytest.mark.slow)])
 def test19_a_duplicated_scratch_is_the_scratch_once(profile):
     """Two identical scratches are one groove on a height field: its lines coincide with the other's, which
     the polygons must count once (polygon.TIE_UM), not twice or never."""
