@@ -407,9 +407,9 @@ BEYOND_THE_TERMS = {  # sets where the corrections alone exceed the bound |U| <=
 
 @pytest.mark.parametrize("name", list(BEYOND_THE_TERMS))
 def test16_the_field_never_exceeds_the_height_fields_bound(name):
-    """Where the truncated expansion exceeds every height field's |U| <= 2πσ² (docs/model.md §3.4; 16x on a
-    denser stress set, docs/bsdf.md), the clamp caps it: f_r <= 4πσ²/λ² everywhere, and below the bound it
-    changes nothing."""
+    """Where the truncated expansion exceeds every height field's |U| <= 2πσ² (docs/model.md §3.4; 1.5x on a
+    stress set with the pair terms alone, tests/bench/bench_height_field_bound.py), the clamp caps it:
+    f_r <= 4πσ²/λ² everywhere, and below the bound it changes nothing."""
     scratches = BEYOND_THE_TERMS[name]
     bsdf = probe.load_bsdf(scratches, sigma_um=5.0, crossings="height_field")
     raw = probe.load_bsdf(scratches, sigma_um=5.0, crossings="height_field")
