@@ -30,11 +30,10 @@ def fresnel_conductor(cos_theta, eta, k):
     a = dr.sqrt(dr.maximum(0.5 * (a2b2 + t0), 0.0))
     t1 = a2b2 + cos2
     t2 = 2.0 * a * cos_theta
-    r_s = (t1 - t2) / (t1 + t2)
     t3 = dr.fma(cos2, a2b2, sin2 * sin2)
     t4 = t2 * sin2
-    r_p = r_s * (t3 - t4) / (t3 + t4)
-    return 0.5 * (r_s + r_p)
+    # ½ (R_s + R_p) = ½ R_s (1 + (t3 - t4)/(t3 + t4)) = R_s t3 / (t3 + t4): one division for both
+    return (t1 - t2) * t3 / ((t1 + t2) * (t3 + t4))
 
 
 def material_textures(name: str):

@@ -183,17 +183,20 @@ class Model:
 
         # ---- spatial frequency and depth phase, per wavelength
         spectrum = mi.Spectrum
-        xi_x = spectrum((wi.x + wo.x) / wavelength)
-        xi_y = spectrum((wi.y + wo.y) / wavelength)
+        # (one reciprocal per wavelength, then products: divisions and square roots are what the
+        # common, empty-window lanes spend most on, docs/bsdf.md, Performance)
+        inv_wavelength = dr.rcp(wavelength)
+        xi_x = spectrum((wi.x + wo.x) * inv_wavelength)
+        xi_y = spectrum((wi.y + wo.y) * inv_wavelength)
         if self.depth_phase == "incidence":  # a screen fixed by ω_i: Parseval bounds the albedo
-            k_z = spectrum((4.0 * math.pi) * wi.z / wavelength)
+            k_z = spectrum(((4.0 * math.pi) * wi.z) * inv_wavelength)
         else:
-            k_z = spectrum((2.0 * math.pi) * (wi.z + wo.z) / wavelength)
+            k_z = spectrum(((2.0 * math.pi) * (wi.z + wo.z)) * inv_wavelength)
         lobe = spectrum(mirror_lobe(xi_x * xi_x + xi_y * xi_y, sigma))
 
         # ---- hero-wavelength quantities of the sampling density
         lam0 = wavelength[0]
-        kz0 = (4.0 * math.pi) * wi.z / lam0  # κ / D at γ_o = γ_i
+        kz0 = (4.0 * math.pi) * wi.z * inv_wavelength[0]  # κ / D at γ_o = γ_i (as sample()'s)
         xi0_x, xi0_y = xi_x[0], xi_y[0]
 
         zero_s, zero_f = dr.zeros(mi.Spectrum), dr.zeros(mi.Float)
@@ -281,12 +284,12 @@ class Model:
                 a, b = self._within_height_field_bound(a, b, sigma)
             if bounded:  # f / max(1, Â(ω_i), Â(ω_o)): reciprocal, albedo ≤ 1 (docs/model.md §4.1)
                 a, b = self._bounded(a, b, *excess)
-            value = self._value(si, wo, wavelength, lobe, a, b, has_glossy, has_diffuse, active)
+            value = self._value(si, wo, inv_wavelength, lobe, a, b, has_glossy, has_diffuse, active)
         if want_pdf:
             q_d, q_s, q_m = self._strategy_weights(si, energy, wi.z, has_glossy, has_diffuse, active)
             xi0_2 = xi0_x * xi0_x + xi0_y * xi0_y
             scratch = dr.select(energy > 0.0, density / dr.maximum(energy, 1e-30), 0.0)
-            specular = (q_m * sampling.pdf_mirror(xi0_2, sigma) + q_s * scratch) * wo.z / (lam0 * lam0)
+            specular = (q_m * sampling.pdf_mirror(xi0_2, sigma) + q_s * scratch) * wo.z * dr.square(inv_wavelength[0])
             pdf = dr.select(active, specular + q_d * wo.z * (1.0 / math.pi), 0.0)
             pdf = dr.select(dr.isfinite(pdf), pdf, 0.0)
         return value, pdf
@@ -323,18 +326,20 @@ class Model:
         wi_n = wi.y * segment.dx - wi.x * segment.dy
         return (wi_n - 1.0) / lam0, (wi_n + 1.0) / lam0
 
-    def _value(self, si, wo, wavelength, lobe, a, b, has_glossy, has_diffuse, active):
+    def _value(self, si, wo, inv_wavelength, lobe, a, b, has_glossy, has_diffuse, active):
+        """f_r cos θ_o from the summed field (a, b) (``inv_wavelength``: 1/λ per wavelength, µm⁻¹)."""
         sigma = self.sigma
         value = dr.zeros(mi.Spectrum)
         if has_glossy:
+            inv_window_area = dr.rcp(math.pi * sigma * sigma)  # 1/(πσ²), µm⁻²
             if self.coherent:
                 intensity = Cx(a, b).abs2()
             else:  # a: Σ|S'_k|², b: Σ ε_k (scratch area in the squared window)
-                covered = dr.minimum(b / (math.pi * sigma * sigma), 1.0)
+                covered = dr.minimum(b * inv_window_area, 1.0)
                 intensity = lobe * lobe * (1.0 - covered) + a
             half = dr.normalize(si.wi + wo)
             fresnel = self._reflectance(si, dr.dot(si.wi, half), active)
-            value = value + fresnel * intensity / (wavelength * wavelength * (math.pi * sigma * sigma))
+            value = value + fresnel * intensity * (dr.square(inv_wavelength) * inv_window_area)
         if has_diffuse and self.diffuse is not None:
             value = value + self.diffuse.eval(si, active) * (1.0 / math.pi)
         value = dr.select(active, value * wo.z, 0.0)
@@ -348,7 +353,7 @@ class Model:
         wavelength, jac = self._hero(si)
         sigma = self.sigma
         lam0 = wavelength[0]
-        kz0 = (4.0 * math.pi) * wi.z / lam0
+        kz0 = (4.0 * math.pi) * wi.z * dr.rcp(lam0)  # (the expression of evaluate(), which it calls)
 
         # ---- one pass: total scratch energy and a segment drawn in proportion (reservoir)
         # (it also keeps the first REPLAY_PIECES pieces it finds: the evaluation below replays them in the
@@ -392,21 +397,22 @@ class Model:
         diffuse = active & (u < q_d)
         scratch = active & ~diffuse & (u < q_d + q_s)
 
-        # ---- scratch line of the chosen segment
-        segment = segment_at(self.grid, jac, chosen, scratch & ~family.eligible if family is not None else scratch)
-        if family is not None:  # exactly the line the density of evaluate() assumes
-            segment = SegmentGeometry(*(dr.select(family.eligible, mine, theirs)
-                                        for mine, theirs in zip(self._family_line(family, second), segment)))
-        lo, hi = self._band(segment, wi, lam0)
-        nu_par = sampling.sample_along(sample2.x, sigma)
-        nu_perp = sampling.sample_across(sample2.y, segment, kz0 * segment.depth, lo, hi)
-        line_x = nu_par * segment.dx - nu_perp * segment.dy
-        line_y = nu_par * segment.dy + nu_perp * segment.dx
+        def scratch_line(mirror_x, mirror_y):
+            """ξ on the chosen segment's scratch line."""
+            segment = segment_at(self.grid, jac, chosen, scratch & ~family.eligible if family is not None else scratch)
+            if family is not None:  # exactly the line the density of evaluate() assumes
+                segment = SegmentGeometry(*(dr.select(family.eligible, mine, theirs)
+                                            for mine, theirs in zip(self._family_line(family, second), segment)))
+            lo, hi = self._band(segment, wi, lam0)
+            nu_par = sampling.sample_along(sample2.x, sigma)
+            nu_perp = sampling.sample_across(sample2.y, segment, kz0 * segment.depth, lo, hi)
+            return nu_par * segment.dx - nu_perp * segment.dy, nu_par * segment.dy + nu_perp * segment.dx
 
-        # ---- mirror lobe
+        # ---- ξ: the mirror lobe, or a scratch line (its gathers and inverse CDFs only in SIMD packets
+        # where some lane drew one: on a sparsely scratched surface most have nothing in reach)
         mirror_x, mirror_y = sampling.sample_mirror(sample2, sigma)
-        xi_x = dr.select(scratch, line_x, mirror_x)
-        xi_y = dr.select(scratch, line_y, mirror_y)
+        xi_x, xi_y = dr.if_stmt((mirror_x, mirror_y), scratch, scratch_line, lambda x, y: (x, y),
+                                label="scratch_line_sample")
 
         # ---- ξ → direction; diffuse base: cosine hemisphere
         out_x = lam0 * xi_x - wi.x
