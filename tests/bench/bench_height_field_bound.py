@@ -4,8 +4,8 @@ A true height field has |T| = 1, so |U(ξ)| <= ∫ w = 2πσ² and f_r <= F · 4
 The height-field correction is a truncated inclusion–exclusion, so a pile of overlaps beyond its orders
 can exceed that bound; ``crossings = "height_field"`` then scales the field back to it
 (``Model._within_height_field_bound``).  This script measures how often and how far the terms alone exceed
-it on a stress set: 3 000 random scratches with W, D ∈ U[0, 6] µm on 4 × 4 mm (about half the area
-scratched), a sheared UV map, shading points spread over the plate, random ω_i, ω_o (cosine-distributed)
+it on a stress set: 3 000 random scratches with W, D ∈ U[0, 6] µm on 4 × 4 mm (Σ W·L ≈ 88 % of the
+area, 58 % of it under some scratch), a sheared UV map, shading points spread over the plate, random ω_i, ω_o (cosine-distributed)
 and wavelengths in 360–830 nm, a perfect mirror (F = 1).  For each batch of lanes it evaluates the height
 field without the clamp (the terms alone), with it (the plugin), and the additive model, and prints the
 lanes above the bound, the worst ratio f_r / bound and what the additive model gives there, and whether any
@@ -45,7 +45,8 @@ def coverage(scratches, rng, points: int = 20000) -> tuple[float, float]:
     starts, ends, widths = [], [], []
     for k in range(scratches.count):
         line = scratches.polyline(k)
-        starts.append(line[:-1]), ends.append(line[1:])
+        starts.append(line[:-1])
+        ends.append(line[1:])
         widths.append(np.full(len(line) - 1, scratches.width[k]))
     a = np.concatenate(starts) @ jac.T
     e = np.concatenate(ends) @ jac.T - a
@@ -113,8 +114,8 @@ def main():
             bsdf.model = dataclasses.replace(bsdf.model, triples=False, parallel_overlaps=False)
         return bsdf, time.perf_counter() - start
 
-    (terms, load_s), (plugin, _), (additive, _) = load("height_field", clamp=False), load("height_field"), \
-        load("additive")
+    terms, load_s = load("height_field", clamp=False)
+    plugin, additive = load("height_field")[0], load("additive")[0]
     print(f"height field tables: {plugin.tables.crossing_count:,} crossing pairs, load {load_s:.1f} s")
     ctx = mi.BSDFContext()
     above = non_finite = 0
