@@ -126,15 +126,14 @@ def main():
 
     mi.set_variant("llvm_ad_spectral")
     from scratch_iridescence import mitsuba_bridge
+    from scratch_iridescence.mitsuba_bridge.render import film_pixels
 
     mitsuba_bridge.register_plugins()
     best: dict[str, float] = {}
     for round_ in range(args.rounds + 1):  # round 0 compiles every variant's kernels
         for variant in args.variants:
             scene = load(folder, variant if variant in SWAPS else None)
-            pixels = 1
-            for size in scene.sensors()[0].film().crop_size():
-                pixels *= int(size)
+            pixels = film_pixels(scene)
             with patched(variant if variant in PATCHES else None):
                 spp = 4 if round_ == 0 else args.spp
                 start = cpu_seconds()
