@@ -166,7 +166,7 @@ class Model:
 
     # --------------------------------------------------------- evaluation
     def evaluate(self, si, wo, *, has_glossy=True, has_diffuse=True, want_value=True, want_pdf=True,
-                 active=True, pieces_in_window=True, family=FIND, found=None):
+                 active=True, pieces_in_window=True, family=FIND, found=None, keep_search=False):
         """``(f_r cos θ_o, pdf)`` (either may be ``None`` when not wanted).
 
         ``pieces_in_window`` (mask): False where the caller knows that no piece lies in the window
@@ -174,9 +174,16 @@ class Model:
         periodic family of each lane's window when the caller has found it (:meth:`sample`; None:
         none is used), else it is looked up here.  ``found``: ``(count, pieces)`` of a search of the
         same window, the first ``REPLAY_PIECES`` pieces in the order it found them: lanes with that
-        many or fewer replay them instead of searching (the same sums, bit for bit)."""
+        many or fewer replay them instead of searching (the same sums, bit for bit).
+
+        ``keep_search``: return ``(value, pdf, search)``, ``search`` being ``(family, count, pieces)``
+        of this window as :meth:`sample` would find them (``search=``), the first ``REPLAY_PIECES``
+        pieces kept in the order found; the window is then searched wherever ω_i is above the surface,
+        whatever ω_o (:mod:`.handoff`: ``eval_pdf`` towards a light, then ``sample``)."""
         wi = si.wi
-        active = mi.Bool(active) & (wi.z > 0.0) & (wo.z > 0.0)
+        searched = mi.Bool(active) & (wi.z > 0.0)  # the window's search depends on x0 and ω_i only
+        active = searched & (wo.z > 0.0)
+        searching = searched if keep_search else active
         wavelength, jac = self._hero(si)
         sigma = self.sigma
         coherent = self.coherent
@@ -202,9 +209,9 @@ class Model:
         zero_s, zero_f = dr.zeros(mi.Spectrum), dr.zeros(mi.Float)
         field = (lobe, zero_s) if coherent else (zero_s, zero_f)
         energy0 = density0 = zero_f
-        scanning = active & has_glossy & pieces_in_window
+        scanning = searching & has_glossy & pieces_in_window
         if family is FIND:
-            family = self._family(jac, active & has_glossy) if has_glossy else None
+            family = self._family(jac, searching & has_glossy) if has_glossy else None
         if family is not None and has_glossy:  # lanes inside a periodic family: its closed form, no search
             inside = family.eligible
             scanning &= ~inside
@@ -228,7 +235,10 @@ class Model:
         pairing = self.height_field and self.parallel_overlaps and coherent and want_value and has_glossy
 
         def body(segment, piece, state):
-            (a, b), energy, density, excess, paired = state
+            (a, b), energy, density, excess, paired, kept = state
+            if keep_search:  # the first REPLAY_PIECES pieces, in the order found (as sample()'s search)
+                count, pieces = kept
+                kept = (count + 1, tuple(dr.select(count == k, piece, pieces[k]) for k in range(REPLAY_PIECES)))
             if want_value and has_glossy:
                 if coherent:
                     s = amplitude(segment, xi_x, xi_y, k_z, sigma)
@@ -265,18 +275,20 @@ class Model:
                 # (never in place: the inputs of a symbolic branch must stay untouched)
                 energy = energy + weight
                 density = density + weight * self._scratch_density(segment, xi0_x, xi0_y, wi, lam0, kz0)
-            return (a, b), energy, density, excess, paired
+            return (a, b), energy, density, excess, paired, kept
 
-        # (the excess sums and the recent pieces join the loop state only when they are used)
+        # (the excess sums, the recent and the kept pieces join the loop state only when they are used)
         no_pieces = (dr.zeros(mi.UInt32), tuple(dr.zeros(mi.UInt32) for _ in range(RECENT_PIECES)))
-        state = (field, energy0, density0, (zero_s, zero_s) if bounded else (), no_pieces if pairing else ())
+        none_kept = (dr.zeros(mi.UInt32), tuple(dr.zeros(mi.UInt32) for _ in range(REPLAY_PIECES)))
+        state = (field, energy0, density0, (zero_s, zero_s) if bounded else (), no_pieces if pairing else (),
+                 none_kept if keep_search else ())
         if found is not None:
             count, kept = found
             replaying = scanning & (count <= REPLAY_PIECES)
             scanning &= ~replaying
             state = replay_pieces(self.grid, jac, count, kept, state, body, replaying)
-        (a, b), energy, density, excess, _ = for_each_segment(self.grid, jac, WINDOW_RADIUS_SIGMAS * sigma, state,
-                                                              body, scanning)
+        (a, b), energy, density, excess, _, kept = for_each_segment(self.grid, jac, WINDOW_RADIUS_SIGMAS * sigma,
+                                                                    state, body, scanning)
 
         value = pdf = None
         if want_value:
@@ -292,6 +304,8 @@ class Model:
             specular = (q_m * sampling.pdf_mirror(xi0_2, sigma) + q_s * scratch) * wo.z * dr.square(inv_wavelength[0])
             pdf = dr.select(active, specular + q_d * wo.z * (1.0 / math.pi), 0.0)
             pdf = dr.select(dr.isfinite(pdf), pdf, 0.0)
+        if keep_search:
+            return value, pdf, (family, *kept)
         return value, pdf
 
     @staticmethod
@@ -346,8 +360,12 @@ class Model:
         return dr.select(dr.isfinite(value), value, 0.0)
 
     # ----------------------------------------------------------- sampling
-    def sample(self, si, sample1, sample2, *, has_glossy=True, has_diffuse=True, active=True):
-        """``(wo, pdf, value, diffuse_chosen)``; ``value`` is f_r cos θ_o (not divided by the pdf)."""
+    def sample(self, si, sample1, sample2, *, has_glossy=True, has_diffuse=True, active=True, search=None):
+        """``(wo, pdf, value, diffuse_chosen)``; ``value`` is f_r cos θ_o (not divided by the pdf).
+
+        ``search``: ``(family, count, pieces)`` of this very window from :meth:`evaluate`
+        (``keep_search``, same ``si``, ``active`` and lobes): its family is taken and lanes with at most
+        ``REPLAY_PIECES`` pieces replay them instead of searching (the same sample, bit for bit)."""
         wi = si.wi
         active = mi.Bool(active) & (wi.z > 0.0)
         wavelength, jac = self._hero(si)
@@ -375,15 +393,22 @@ class Model:
             return energy, chosen, dr.clip(u, 0.0, 0.99999994), count + 1, kept
 
         energy0, scanning = dr.zeros(mi.Float), active & has_glossy
-        family = self._family(jac, active & has_glossy) if has_glossy else None
+        if search is None:
+            family = self._family(jac, active & has_glossy) if has_glossy else None
+        else:
+            family, found_count, found_pieces = search
         if family is not None:  # a periodic family: its tracks' weight (all sample alike: its line, below)
             w_a, w_b = self._family_weights(family, kz0)
             energy0 = w_a + w_b
             scanning &= ~family.eligible
         no_pieces = tuple(dr.zeros(mi.UInt32) for _ in range(kept_count))
-        energy, chosen, u, count, kept = for_each_segment(
-            self.grid, jac, WINDOW_RADIUS_SIGMAS * sigma,
-            (energy0, dr.zeros(mi.UInt32), mi.Float(sample1), dr.zeros(mi.UInt32), no_pieces), body, scanning)
+        state = (energy0, dr.zeros(mi.UInt32), mi.Float(sample1), dr.zeros(mi.UInt32), no_pieces)
+        if search is not None:  # the pieces evaluate() found here, in its order: the same reservoir
+            replaying = scanning & (found_count <= REPLAY_PIECES)
+            scanning &= ~replaying
+            state = replay_pieces(self.grid, jac, found_count, found_pieces, state, body, replaying)
+        energy, chosen, u, count, kept = for_each_segment(self.grid, jac, WINDOW_RADIUS_SIGMAS * sigma, state, body,
+                                                          scanning)
 
         second = False
         if family is not None and family.kink is not None:  # at a kink: B's line in proportion to its weight

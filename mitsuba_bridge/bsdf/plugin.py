@@ -9,7 +9,7 @@ import drjit as dr
 import mitsuba as mi
 
 from .. import scratch
-from . import memory, parameters, persistent, tables
+from . import handoff, memory, parameters, persistent, tables
 from .fresnel import material_textures
 from .lookup import Grid
 from .model import Model
@@ -280,13 +280,18 @@ def _make_class() -> type:
                                        want_value=False, active=active)[1]
 
         def eval_pdf(self, ctx, si, wo, active=True):
+            # (the path tracers sample() at the same point next: the window's search is left for it)
             glossy, diffuse = self._lobes(ctx)
-            return self.model.evaluate(si, wo, has_glossy=glossy, has_diffuse=diffuse, active=active)
+            value, pdf, search = self.model.evaluate(si, wo, has_glossy=glossy, has_diffuse=diffuse, active=active,
+                                                     keep_search=True)
+            handoff.leave(self, si, active, (glossy, diffuse), search)
+            return value, pdf
 
         def sample(self, ctx, si, sample1, sample2, active=True):
             glossy, diffuse = self._lobes(ctx)
             wo, pdf, value, chose_diffuse = self.model.sample(
-                si, sample1, sample2, has_glossy=glossy, has_diffuse=diffuse, active=active)
+                si, sample1, sample2, has_glossy=glossy, has_diffuse=diffuse, active=active,
+                search=handoff.take(self, si, active, (glossy, diffuse)))
             bs = dr.zeros(mi.BSDFSample3f)
             bs.wo = wo
             bs.pdf = pdf

@@ -1,0 +1,142 @@
+"""The window search that ``eval_pdf`` hands on to the ``sample`` call after it (bsdf/handoff.py).
+
+Taken, it must change nothing but the time: the same samples, weights and pdfs bit for bit, in
+evaluated calls and inside Mitsuba's path tracer; and it must be refused whenever the two calls
+do not search the very same window.
+"""
+from __future__ import annotations
+
+import drjit as dr
+import mitsuba as mi
+import numpy as np
+import pytest
+
+from scratch_iridescence.mitsuba_bridge import scratch
+from scratch_iridescence.mitsuba_bridge.bsdf import handoff
+from scratch_iridescence.mitsuba_bridge.bsdf import reference as ref
+import shading
+from test_render import scene_dict
+
+WAVELENGTHS = (520.0, 410.0, 680.0, 600.0)
+COUNT = 20000
+
+
+def fan_bsdf(**settings):
+    """Seven scratches through one point: windows near it hold all seven, farther out fewer, far out none."""
+    scratches = [ref.Scratch((-20 * np.cos(t), -20 * np.sin(t)), (20 * np.cos(t), 20 * np.sin(t)), 0.3, 0.2,
+                             ref.TRI if k % 2 else ref.RECT)
+                 for k, t in enumerate(np.linspace(0.1, 3.0, 7))]
+    return shading.load_bsdf(scratches, sigma_um=0.5, **settings)
+
+
+def grating_bsdf():
+    """V-grooves at a 0.45 µm pitch: the windows lie in a periodic family (its closed form, no search)."""
+    scratches = [ref.Scratch((-30, y), (30, y), 0.3, 0.15, ref.TRI) for y in np.arange(-9.0, 9.01, 0.45)]
+    return shading.load_bsdf(scratches, sigma_um=0.5, cell_size=1.0 / 16.0)
+
+
+def lanes(seed):
+    """Shading points up to 15 µm from the fan's centre, a light direction (a third of them below the
+    surface: the search must not depend on it) and the sampler's numbers."""
+    rng = np.random.default_rng(seed)
+    uv = shading.to_uv(rng.uniform(-15.0, 15.0, (COUNT, 2)))
+    si = shading.interaction(COUNT, shading.direction(35.0, 25.0), WAVELENGTHS, uv=(uv[:, 0], uv[:, 1]))
+    theta = np.radians(rng.uniform(0.0, 130.0, COUNT))
+    phi = rng.uniform(0.0, 2.0 * np.pi, COUNT)
+    light = mi.Vector3f(*(shading.floats(x) for x in (np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi),
+                                                       np.cos(theta))))
+    u = shading.floats(rng.random(COUNT))
+    u2 = mi.Point2f(shading.floats(rng.random(COUNT)), shading.floats(rng.random(COUNT)))
+    return si, light, u, u2
+
+
+def arrays(*values):
+    return [np.asarray(v) for v in values]
+
+
+def sample_arrays(bs, weight):
+    return arrays(bs.wo, bs.pdf, bs.sampled_type, weight)
+
+
+@pytest.mark.parametrize("make", [fan_bsdf, lambda: fan_bsdf(coherent=False), grating_bsdf,
+                                  lambda: fan_bsdf(crossings="height_field")],
+                         ids=["coherent", "incoherent", "periodic", "height_field"])
+def test01_sample_after_eval_pdf_takes_its_search_and_draws_the_same_bits(make):
+    bsdf = make()
+    ctx = mi.BSDFContext()
+    si, light, u, u2 = lanes(3)
+    handoff.clear()
+    fresh = sample_arrays(*bsdf.sample(ctx, si, u, u2))  # nothing left: it searches itself
+    plain = arrays(*bsdf.model.evaluate(si, light))
+
+    before = handoff.statistics()
+    value, pdf = bsdf.eval_pdf(ctx, si, light)
+    handed = sample_arrays(*bsdf.sample(ctx, si, u, u2))
+    after = handoff.statistics()
+    assert after["taken"] == before["taken"] + 1 and after["refused"] == before["refused"]
+    for mine, theirs in zip(handed, fresh):
+        np.testing.assert_array_equal(mine, theirs)
+    # eval_pdf itself: what it always returned, though it searched below-horizon lights' windows too
+    for mine, theirs in zip(arrays(value, pdf), plain):
+        np.testing.assert_array_equal(mine, theirs)
+    assert np.asarray(fresh[1]).max() > 0
+
+
+def test02_the_fan_has_windows_of_every_kind():
+    """test01's lanes hold no piece, a few (replayed from the search) and more than are kept (searched again)."""
+    from scratch_iridescence.mitsuba_bridge.bsdf.lookup import for_each_segment, jacobian
+    from scratch_iridescence.mitsuba_bridge.bsdf.model import REPLAY_PIECES
+
+    model = fan_bsdf().model
+    si = lanes(3)[0]
+    pieces = np.asarray(for_each_segment(model.grid, jacobian(si, model.micrometres_per_unit), 4 * model.sigma,
+                                         (dr.zeros(mi.UInt32, COUNT),), lambda s, p, state: (state[0] + 1,),
+                                         mi.Bool(True))[0])
+    assert (pieces == 0).any() and ((pieces > 0) & (pieces <= REPLAY_PIECES)).any() and (pieces > REPLAY_PIECES).any()
+
+
+def test03_another_point_mask_or_lobe_searches_again():
+    bsdf = fan_bsdf(diffuse_reflectance=0.2)
+    ctx = mi.BSDFContext()
+    si, light, u, u2 = lanes(5)
+    handoff.clear()
+    fresh = sample_arrays(*bsdf.sample(ctx, si, u, u2))
+
+    other = lanes(5)[0]  # the same point in new variables
+    diffuse_only = mi.BSDFContext()
+    diffuse_only.component = 1
+    half = mi.Bool(np.arange(COUNT) % 2 == 0)
+
+    for eval_args, sample_args in [((ctx, other, light), (ctx, si, u, u2)),  # another point (new variables)
+                                   ((ctx, si, light, half), (ctx, si, u, u2)),  # another mask
+                                   ((diffuse_only, si, light), (ctx, si, u, u2))]:  # other lobes
+        before = handoff.statistics()
+        bsdf.eval_pdf(*eval_args)
+        result = sample_arrays(*bsdf.sample(*sample_args))
+        after = handoff.statistics()
+        assert after["refused"] == before["refused"] + 1 and after["taken"] == before["taken"]
+        for mine, theirs in zip(result, fresh):
+            np.testing.assert_array_equal(mine, theirs)
+    # a sample without an eval_pdf before it finds the slot empty (the last sample emptied it)
+    before = handoff.statistics()
+    bsdf.sample(ctx, si, u, u2)
+    assert handoff.statistics() == before
+
+
+@pytest.mark.parametrize("settings", [{}, {"coherent": False}], ids=["coherent", "incoherent"])
+def test04_the_path_tracer_hands_searches_on_and_renders_the_same_bits(settings, monkeypatch):
+    """Mitsuba's ``path`` calls eval_pdf towards the light, then sample, at every vertex: the render
+    takes the searches, and its image equals, bit for bit, one whose samples all search again."""
+    s = scratch.random_scratches(300, seed=7, width=scratch.Uniform(1e-6, 5e-6), depth=scratch.Constant(2.5e-7),
+                                 region=((0.0, 0.0), (0.5, 1.0)), length=(0.2, 0.5))
+    description = scene_dict(s)
+    description["plate"]["bsdf"].update(settings)
+    description["sensor"]["film"].update(width=24, height=24)
+    scene = mi.load_dict(description)
+
+    before = handoff.statistics()
+    handed = np.asarray(mi.render(scene, spp=8, seed=2))
+    assert handoff.statistics()["taken"] > before["taken"]
+    monkeypatch.setattr(handoff, "take", lambda *arguments: None)
+    searched = np.asarray(mi.render(scene, spp=8, seed=2))
+    assert handed.tobytes() == searched.tobytes() and np.abs(handed).max() > 0
