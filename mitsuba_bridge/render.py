@@ -204,7 +204,8 @@ def render_chunks(scene, chunks: Iterable[Chunk], spp_total: int, *, freeze: boo
         launched = passes(scene, 0, chunks[number].spp, chunks[number].seed) \
             if overlap and number < len(chunks) else None
         # float32 × an integer below 2**29 is exact in float64: the only rounding is in the fixed-order sum.
-        sums.add(image.astype(np.float64) * chunk.spp)
+        # (one float64 image made, not a cast and then a product: ~10 MB less to allocate per chunk at 720p)
+        sums.add(np.multiply(image, float(chunk.spp), dtype=np.float64))
         done += chunk.spp
         yield Progress(number, done, spp_total, time.perf_counter() - start, chunk, sums, sums.partials(),
                        traced_because=passes.failure)
