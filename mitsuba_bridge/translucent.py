@@ -42,7 +42,8 @@ def plugin_class():
             if "transmittance" in props:
                 self.m_transmittance = props.get_texture("transmittance")  # numbers, colours and textures
             else:
-                self.m_transmittance = mi.load_dict({"type": "uniform", "value": 0.5})
+                # (serial: this runs on a worker of the parallel scene loader, as fresnel.material_textures)
+                self.m_transmittance = mi.load_dict({"type": "uniform", "value": 0.5}, parallel=False)
             flags = mi.BSDFFlags.DiffuseTransmission | mi.BSDFFlags.FrontSide | mi.BSDFFlags.BackSide
             self.m_components = [flags]
             self.m_flags = flags

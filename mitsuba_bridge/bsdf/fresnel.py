@@ -55,7 +55,9 @@ def material_textures(name: str):
             f"unknown material {name!r}: use a conductor name of Mitsuba's 'conductor' plugin "
             f"({', '.join(known[:12])}{', ...' if len(known) > 12 else ''}), 'none' for a perfect "
             "mirror, or give 'eta' and 'k'")
-    return tuple(_regular(mi.load_dict({"type": "spectrum", "filename": p})) for p in paths)
+    # (parallel=False: the plugin's constructor runs on a worker of Mitsuba's own parallel scene loader,
+    # whose pool a nested parallel load would schedule on again; one node needs no parallelism)
+    return tuple(_regular(mi.load_dict({"type": "spectrum", "filename": p}, parallel=False)) for p in paths)
 
 
 def _wavelength_grid_nm(texture):
@@ -82,4 +84,4 @@ def _regular(texture):
     si.wavelengths = mi.Spectrum(aligned_array(mi.Float, grid))
     values = np.asarray(texture.eval(si))[0]
     return mi.load_dict({"type": "regular", "wavelength_min": float(grid[0]), "wavelength_max": float(grid[-1]),
-                         "values": ", ".join(f"{v:.9g}" for v in values)})
+                         "values": ", ".join(f"{v:.9g}" for v in values)}, parallel=False)
