@@ -20,7 +20,10 @@ certainly the same search, in the same traced program:
 
 Anything else (``sample`` alone, ``eval_pdf`` alone, another point) searches
 as before.  Taken or not, the slot is emptied by the next ``sample``; what is
-taken changes no result, only the time (docs/bsdf.md, Performance).
+taken changes no result, only the time (docs/bsdf.md, Performance).  Only traced
+calls (inside a symbolic loop, branch or virtual call, as a render's) leave their
+search: there its variables are code, not memory, where an evaluated call's would
+hold some twenty arrays of every lane until the next call.
 """
 from __future__ import annotations
 
@@ -29,9 +32,9 @@ import threading
 
 import drjit as dr
 
-__all__ = ["leave", "take", "clear", "statistics"]
+__all__ = ["traced", "leave", "take", "clear", "statistics"]
 
-_slot = threading.local()  #: per tracing thread: (owner, key, held, search) or absent
+_slot = threading.local()  #: per tracing thread: ``entry`` = (key, held arrays, search), or None
 _counts = {"left": 0, "taken": 0, "refused": 0}
 
 
@@ -54,6 +57,11 @@ def _mask_key(active):
 
 def _scope(fields) -> int:
     return dr.detail.scope(dr.backend_v(fields[0]))
+
+
+def traced() -> bool:
+    """Whether the calls are being traced into a symbolic region (where ``eval_pdf`` leaves its search)."""
+    return bool(dr.flag(dr.JitFlag.SymbolicScope))
 
 
 def leave(owner, si, active, lobes: tuple, search) -> None:

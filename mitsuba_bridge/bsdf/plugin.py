@@ -280,8 +280,11 @@ def _make_class() -> type:
                                        want_value=False, active=active)[1]
 
         def eval_pdf(self, ctx, si, wo, active=True):
-            # (the path tracers sample() at the same point next: the window's search is left for it)
             glossy, diffuse = self._lobes(ctx)
+            if not handoff.traced():  # evaluated calls: the search's arrays would stay held for every lane
+                handoff.clear()
+                return self.model.evaluate(si, wo, has_glossy=glossy, has_diffuse=diffuse, active=active)
+            # (a path tracer samples at the same point next: the window's search is left for that call)
             value, pdf, search = self.model.evaluate(si, wo, has_glossy=glossy, has_diffuse=diffuse, active=active,
                                                      keep_search=True)
             handoff.leave(self, si, active, (glossy, diffuse), search)

@@ -1,8 +1,8 @@
 """The window search that ``eval_pdf`` hands on to the ``sample`` call after it (bsdf/handoff.py).
 
 Taken, it must change nothing but the time: the same samples, weights and pdfs bit for bit, in
-evaluated calls and inside Mitsuba's path tracer; and it must be refused whenever the two calls
-do not search the very same window.
+traced calls and inside Mitsuba's path tracer; it must be refused whenever the two calls do not
+search the very same window, and evaluated calls keep nothing.
 """
 from __future__ import annotations
 
@@ -54,8 +54,23 @@ def arrays(*values):
     return [np.asarray(v) for v in values]
 
 
-def sample_arrays(bs, weight):
-    return arrays(bs.wo, bs.pdf, bs.sampled_type, weight)
+SAMPLE_TYPES = (mi.Vector3f, mi.Float, mi.UInt32, mi.Spectrum)
+EVAL_TYPES = (mi.Spectrum, mi.Float)
+
+
+def traced(function, si, types):
+    """``function()``'s arrays, traced as a render traces the BSDF: in a symbolic region (a branch that
+    every lane takes), where ``eval_pdf`` leaves its search; evaluated calls keep none."""
+    every = dr.isfinite(si.uv.x)
+    result = dr.if_stmt((), every, lambda: tuple(t(x) for t, x in zip(types, function())),
+                        lambda: tuple(dr.zeros(t, dr.width(si.uv)) for t in types), mode="symbolic",
+                        label="test_handoff")
+    return arrays(*result)
+
+
+def sampled(bsdf, ctx, si, u, u2):
+    bs, weight = bsdf.sample(ctx, si, u, u2)
+    return bs.wo, bs.pdf, bs.sampled_type, weight
 
 
 @pytest.mark.parametrize("make", [fan_bsdf, lambda: fan_bsdf(coherent=False), grating_bsdf,
@@ -66,20 +81,20 @@ def test01_sample_after_eval_pdf_takes_its_search_and_draws_the_same_bits(make):
     ctx = mi.BSDFContext()
     si, light, u, u2 = lanes(3)
     handoff.clear()
-    fresh = sample_arrays(*bsdf.sample(ctx, si, u, u2))  # nothing left: it searches itself
-    plain = arrays(*bsdf.model.evaluate(si, light))
+    fresh = traced(lambda: sampled(bsdf, ctx, si, u, u2), si, SAMPLE_TYPES)  # nothing left: it searches
+    plain = traced(lambda: bsdf.model.evaluate(si, light), si, EVAL_TYPES)
 
     before = handoff.statistics()
-    value, pdf = bsdf.eval_pdf(ctx, si, light)
-    handed = sample_arrays(*bsdf.sample(ctx, si, u, u2))
+    both = traced(lambda: bsdf.eval_pdf(ctx, si, light) + sampled(bsdf, ctx, si, u, u2), si,
+                  EVAL_TYPES + SAMPLE_TYPES)
     after = handoff.statistics()
     assert after["taken"] == before["taken"] + 1 and after["refused"] == before["refused"]
-    for mine, theirs in zip(handed, fresh):
+    for mine, theirs in zip(both[2:], fresh):
         np.testing.assert_array_equal(mine, theirs)
     # eval_pdf itself: what it always returned, though it searched below-horizon lights' windows too
-    for mine, theirs in zip(arrays(value, pdf), plain):
+    for mine, theirs in zip(both[:2], plain):
         np.testing.assert_array_equal(mine, theirs)
-    assert np.asarray(fresh[1]).max() > 0
+    assert fresh[1].max() > 0
 
 
 def test02_the_fan_has_windows_of_every_kind():
@@ -100,25 +115,36 @@ def test03_another_point_mask_or_lobe_searches_again():
     ctx = mi.BSDFContext()
     si, light, u, u2 = lanes(5)
     handoff.clear()
-    fresh = sample_arrays(*bsdf.sample(ctx, si, u, u2))
+    fresh = traced(lambda: sampled(bsdf, ctx, si, u, u2), si, SAMPLE_TYPES)
 
     other = lanes(5)[0]  # the same point in new variables
     diffuse_only = mi.BSDFContext()
     diffuse_only.component = 1
     half = mi.Bool(np.arange(COUNT) % 2 == 0)
 
-    for eval_args, sample_args in [((ctx, other, light), (ctx, si, u, u2)),  # another point (new variables)
-                                   ((ctx, si, light, half), (ctx, si, u, u2)),  # another mask
-                                   ((diffuse_only, si, light), (ctx, si, u, u2))]:  # other lobes
+    for eval_args in [(ctx, other, light),  # another point (new variables)
+                      (ctx, si, light, half),  # another mask
+                      (diffuse_only, si, light)]:  # other lobes
         before = handoff.statistics()
-        bsdf.eval_pdf(*eval_args)
-        result = sample_arrays(*bsdf.sample(*sample_args))
+        result = traced(lambda: bsdf.eval_pdf(*eval_args) + sampled(bsdf, ctx, si, u, u2), si,
+                        EVAL_TYPES + SAMPLE_TYPES)
         after = handoff.statistics()
         assert after["refused"] == before["refused"] + 1 and after["taken"] == before["taken"]
-        for mine, theirs in zip(result, fresh):
+        for mine, theirs in zip(result[2:], fresh):
             np.testing.assert_array_equal(mine, theirs)
     # a sample without an eval_pdf before it finds the slot empty (the last sample emptied it)
     before = handoff.statistics()
+    traced(lambda: sampled(bsdf, ctx, si, u, u2), si, SAMPLE_TYPES)
+    assert handoff.statistics() == before
+
+
+def test05_evaluated_calls_leave_nothing():
+    """Outside a traced region ``eval_pdf`` keeps no search (it would hold arrays of every lane)."""
+    bsdf = fan_bsdf()
+    ctx = mi.BSDFContext()
+    si, light, u, u2 = lanes(7)
+    before = handoff.statistics()
+    bsdf.eval_pdf(ctx, si, light)
     bsdf.sample(ctx, si, u, u2)
     assert handoff.statistics() == before
 
