@@ -11,11 +11,10 @@ import mitsuba as mi
 import numpy as np
 import pytest
 
-from scratch_iridescence.mitsuba_bridge import scratch
 from scratch_iridescence.mitsuba_bridge.bsdf import handoff
 from scratch_iridescence.mitsuba_bridge.bsdf import reference as ref
 import shading
-from test_render import scene_dict
+from test_render import small_scene
 
 WAVELENGTHS = (520.0, 410.0, 680.0, 600.0)
 COUNT = 20000
@@ -153,12 +152,7 @@ def test05_evaluated_calls_leave_nothing():
 def test04_the_path_tracer_hands_searches_on_and_renders_the_same_bits(settings, monkeypatch):
     """Mitsuba's ``path`` calls eval_pdf towards the light, then sample, at every vertex: the render
     takes the searches, and its image equals, bit for bit, one whose samples all search again."""
-    s = scratch.random_scratches(300, seed=7, width=scratch.Uniform(1e-6, 5e-6), depth=scratch.Constant(2.5e-7),
-                                 region=((0.0, 0.0), (0.5, 1.0)), length=(0.2, 0.5))
-    description = scene_dict(s)
-    description["plate"]["bsdf"].update(settings)
-    description["sensor"]["film"].update(width=24, height=24)
-    scene = mi.load_dict(description)
+    scene = small_scene(settings, 24)
 
     before = handoff.statistics()
     handed = np.asarray(mi.render(scene, spp=8, seed=2))

@@ -28,6 +28,16 @@ def scene_dict(scratches):
     }
 
 
+def small_scene(settings: dict, size: int):
+    """The plate with 300 scratches on its left half, the BSDF's ``settings``, on a ``size``² film."""
+    s = scratch.random_scratches(300, seed=7, width=scratch.Uniform(1e-6, 5e-6), depth=scratch.Constant(2.5e-7),
+                                 region=((0.0, 0.0), (0.5, 1.0)), length=(0.2, 0.5))
+    description = scene_dict(s)
+    description["plate"]["bsdf"].update(settings)
+    description["sensor"]["film"].update(width=size, height=size)
+    return mi.load_dict(description)
+
+
 def test01_scratched_half_of_a_plate_shows_coloured_glints():
     scratches = scratch.random_scratches(
         800, seed=4, width=scratch.Gaussian(4e-6, 1.3e-6), depth=scratch.Gaussian(250e-9, 80e-9),
@@ -85,12 +95,7 @@ def test03_frozen_chunks_give_the_traced_image_bit_for_bit(settings, monkeypatch
     traced one to the last bit."""
     from scratch_iridescence.mitsuba_bridge import freezing, render
 
-    s = scratch.random_scratches(300, seed=7, width=scratch.Uniform(1e-6, 5e-6), depth=scratch.Constant(2.5e-7),
-                                 region=((0.0, 0.0), (0.5, 1.0)), length=(0.2, 0.5))
-    description = scene_dict(s)
-    description["plate"]["bsdf"].update(settings)
-    description["sensor"]["film"].update(width=16, height=16)
-    scene = mi.load_dict(description)
+    scene = small_scene(settings, 16)
     spp = 13  # chunks of 4, 4, 4 and 1 spp on a 16 x 16 film: two sizes, two replays
     schedule = render.sample_schedule(spp, 16 * 16, 3)
     assert [c.spp for c in schedule] == [4, 4, 4, 1]
