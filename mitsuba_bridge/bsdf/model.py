@@ -282,13 +282,8 @@ class Model:
         none_kept = (dr.zeros(mi.UInt32), tuple(dr.zeros(mi.UInt32) for _ in range(REPLAY_PIECES)))
         state = (field, energy0, density0, (zero_s, zero_s) if bounded else (), no_pieces if pairing else (),
                  none_kept if keep_search else ())
-        if found is not None:
-            count, kept = found
-            replaying = scanning & (count <= REPLAY_PIECES)
-            scanning &= ~replaying
-            state = replay_pieces(self.grid, jac, count, kept, state, body, replaying)
-        (a, b), energy, density, excess, _, kept = for_each_segment(self.grid, jac, WINDOW_RADIUS_SIGMAS * sigma,
-                                                                    state, body, scanning)
+        (a, b), energy, density, excess, _, kept = _fold_pieces(self.grid, jac, WINDOW_RADIUS_SIGMAS * sigma, state,
+                                                                body, scanning, found)
 
         value = pdf = None
         if want_value:
@@ -411,12 +406,9 @@ class Model:
             scanning &= ~family.eligible
         no_pieces = tuple(dr.zeros(mi.UInt32) for _ in range(kept_count))
         state = (energy0, dr.zeros(mi.UInt32), mi.Float(sample1), dr.zeros(mi.UInt32), no_pieces)
-        if search is not None:  # the pieces evaluate() found here, in its order: the same reservoir
-            replaying = scanning & (found_count <= REPLAY_PIECES)
-            scanning &= ~replaying
-            state = replay_pieces(self.grid, jac, found_count, found_pieces, state, body, replaying)
-        energy, chosen, u, count, kept = for_each_segment(self.grid, jac, WINDOW_RADIUS_SIGMAS * sigma, state, body,
-                                                          scanning)
+        # (with a search: the pieces evaluate() found here, in its order, give the same reservoir)
+        energy, chosen, u, count, kept = _fold_pieces(self.grid, jac, WINDOW_RADIUS_SIGMAS * sigma, state, body,
+                                                      scanning, None if search is None else (found_count, found_pieces))
 
         second = False
         if family is not None and family.kink is not None:  # at a kink: B's line in proportion to its weight
@@ -461,6 +453,18 @@ class Model:
                                    pieces_in_window=count > 0, family=family,
                                    found=(count, kept) if replays else None)
         return wo, pdf, value, diffuse
+
+
+def _fold_pieces(grid, jac, radius, state, body, scanning, found):
+    """``body`` folded over the window's pieces (:func:`.lookup.for_each_segment`); ``found``: ``(count,
+    pieces)`` of an earlier search of the same window, whose lanes with at most ``REPLAY_PIECES`` pieces
+    replay them in its order instead of searching (the same fold, bit for bit)."""
+    if found is not None:
+        count, pieces = found
+        replaying = scanning & (count <= REPLAY_PIECES)
+        scanning &= ~replaying
+        state = replay_pieces(grid, jac, count, pieces, state, body, replaying)
+    return for_each_segment(grid, jac, radius, state, body, scanning)
 
 
 def sampling_share(energy, sigma):
