@@ -139,7 +139,8 @@ class Progress:
     def image(self) -> np.ndarray:
         if self.shown is not None:
             return self.shown
-        return (PairwiseSum.fold(self.partials) / self.spp_done).astype(np.float32)
+        # (the sums are Dr.Jit arrays while rendering: folded there, read back once, divided here)
+        return (np.asarray(PairwiseSum.fold(self.partials), dtype=np.float64) / self.spp_done).astype(np.float32)
 
 
 class Refresh:
@@ -197,18 +198,41 @@ def render_chunks(scene, chunks: Iterable[Chunk], spp_total: int, *, freeze: boo
     launched = None  # the next chunk's image, already launched (overlap)
     for number, chunk in enumerate(chunks, start=1):
         result = launched if launched is not None else passes(scene, 0, chunk.spp, chunk.seed)
-        image = np.asarray(result, dtype=np.float32)  # waits for this chunk's kernels
+        sums.add(_contribution(result, chunk.spp))
         del result
+        _finish(sums.partials())  # this chunk's kernels, its contribution and the sums it joined
         if scene.integrator().should_stop():  # a SIGINT while a traced or recorded pass ran (render_whole)
             raise RenderInterrupted("Mitsuba stopped the render early (interrupted)")
         launched = passes(scene, 0, chunks[number].spp, chunks[number].seed) \
             if overlap and number < len(chunks) else None
-        # float32 × an integer below 2**29 is exact in float64: the only rounding is in the fixed-order sum.
-        # (one float64 image made, not a cast and then a product: ~10 MB less to allocate per chunk at 720p)
-        sums.add(np.multiply(image, float(chunk.spp), dtype=np.float64))
         done += chunk.spp
         yield Progress(number, done, spp_total, time.perf_counter() - start, chunk, sums, sums.partials(),
                        traced_because=passes.failure)
+
+
+def _contribution(image, spp: int):
+    """A chunk's ``float64(image) × spp`` as a Dr.Jit tensor, not yet evaluated.
+
+    Exact (a float32 times an integer below 2**29 fits in a float64), so the
+    same bits as NumPy's; the only rounding is in the fixed-order sums
+    (:class:`PairwiseSum`, whose adds are Dr.Jit's too while the values are
+    Dr.Jit arrays: IEEE float64 additions, the same bits as NumPy's).  Kept on
+    the device, the sums cost the host nothing per chunk: reading every chunk's
+    image back and adding it with NumPy (~10 ms at 720 × 450) left the
+    render's worker threads spinning idle meanwhile (docs/rendering.md, What a
+    chunk costs).  The image comes to the host only when it is shown.
+    """
+    import drjit as dr
+
+    return dr.float64_array_t(type(image))(image) * float(spp)
+
+
+def _finish(values) -> None:
+    """Evaluate ``values`` (Dr.Jit arrays) and wait until they are computed."""
+    import drjit as dr
+
+    dr.eval(*values)
+    dr.sync_thread()
 
 
 def render_passes(scene, spp: int, *, seed: int = 0) -> Iterator[Progress]:

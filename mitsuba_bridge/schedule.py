@@ -8,9 +8,18 @@ machine or spread over many (``--chunk K/N`` and ``merge`` on the command line).
 
 * **Sizes.**  Every chunk takes ``per_chunk`` samples per pixel (:func:`chunk_spp`),
   the largest power of two whose ``pixels × per_chunk`` stays within
-  :data:`MAX_SAMPLES_PER_PASS` (memory in flight, see docs/rendering.md); the
-  remainder goes in chunks of :data:`SMALL_CHUNK_SPP` and then of 2 and 1.  So
-  at most four sizes (four compiled kernels) serve a render.
+  :data:`MAX_SAMPLES_PER_PASS` (what one call renders before Esc is looked at
+  again, see docs/rendering.md); the remainder goes in chunks of
+  :data:`SMALL_CHUNK_SPP` and then of 2 and 1.  So at most four sizes (four
+  compiled kernels) serve a render.  A render of fewer spp than a full chunk
+  takes the largest power of two within its spp as its full size (64 spp at
+  256² is one chunk of 64, not sixteen of 4).
+* **Why not smaller chunks.**  A pixel's samples are consecutive lanes, so a
+  chunk of fewer spp than the SIMD packet (16 lanes with AVX-512) puts
+  several pixels in one packet, whose lanes then diverge in the scratch
+  BSDF's loops and branches: measured on the Fig. 9 grating at 720 × 450
+  (docs/rendering.md, What a chunk costs), 256 spp in chunks of 2, 4, 8 and
+  16+ spp rendered at 0.86, 0.92, 0.96 and 1 times the samples per core-second.
 * **Why these sizes: one pixel, one thread.**  Mitsuba adds a pixel's samples
   into the film with atomic float additions, so a pixel whose samples were
   split between two CPU threads gets them added in whatever order the threads
@@ -48,8 +57,9 @@ import numpy as np
 __all__ = ["MAX_SAMPLES_PER_PASS", "MAX_CHUNKS", "SMALL_CHUNK_SPP", "GPU_CHUNK_SPP", "ScheduleError", "Chunk", "Node",
            "sample_schedule", "chunk_spp", "pass_seed", "part_range", "tree_nodes", "tree_sum", "root", "PairwiseSum"]
 
-#: Samples in flight per ``mi.render`` call; beyond this LLVM and CUDA only use more memory.
-MAX_SAMPLES_PER_PASS = 1 << 22
+#: Samples per ``mi.render`` call (a chunk): 720 × 450 takes 16 spp (one pixel per 16-lane SIMD packet),
+#: 1080p 4; Esc waits for the chunk in flight (docs/rendering.md, What a chunk costs).
+MAX_SAMPLES_PER_PASS = 1 << 23
 #: More chunks than this is a mistake (hours of per-call overhead alone), refused before anything starts.
 MAX_CHUNKS = 1 << 20
 #: Chunks this small never split a pixel between threads (Dr.Jit's narrowest SIMD packet holds 4 samples).
@@ -137,9 +147,9 @@ def sample_schedule(spp: int, pixels: int, seed: int = 0, *, gpu: bool = False) 
     Examples
     --------
     >>> [c.spp for c in sample_schedule(100, 512 * 512)]
-    [16, 16, 16, 16, 16, 16, 4]
-    >>> [c.spp for c in sample_schedule(4096 + 11, 32 * 24)]
-    [4096, 4, 4, 2, 1]
+    [32, 32, 32, 4]
+    >>> [c.spp for c in sample_schedule(8192 + 11, 32 * 24)]
+    [8192, 4, 4, 2, 1]
     >>> [c.spp for c in sample_schedule(100, 32 * 24, gpu=True)]
     [32, 32, 32, 4]
     """
@@ -149,6 +159,9 @@ def sample_schedule(spp: int, pixels: int, seed: int = 0, *, gpu: bool = False) 
     if pixels < 1:
         raise ScheduleError(f"the film must have at least one pixel, got {pixels}")
     full = chunk_spp(pixels, gpu=gpu)
+    within = 1 << (spp.bit_length() - 1)  # the largest power of two within spp
+    if SMALL_CHUNK_SPP < within < full and (gpu or pixels * within > _LARGE_CALL_SAMPLES):
+        full = within  # fewer spp than a full chunk: one chunk of the most it can take, not 4-spp ones
     count = spp // full + (spp % full) // SMALL_CHUNK_SPP + 2
     if count > MAX_CHUNKS:
         raise ScheduleError(f"{spp:,} spp over {pixels:,} pixels would take {count - 2:,} or more render calls "
@@ -219,7 +232,11 @@ class PairwiseSum:
     Starts at chunk ``start`` (a part of a render) and holds at most
     2·log2(chunks) + 1 partial sums, each a complete tree node.  :meth:`total`
     of all chunks equals ``tree_sum(root)`` bit for bit, and :meth:`node_sums`
-    gives the nodes a part file stores.
+    gives the nodes a part file stores.  The contributions may be NumPy arrays
+    or Dr.Jit arrays (a render keeps them on the device,
+    :func:`~mitsuba_bridge.render.render_chunks`): the sums are then Dr.Jit's
+    float64 additions, the same bits; :meth:`total` and :meth:`node_sums` are
+    NumPy arrays either way.
     """
 
     def __init__(self, start: int = 0):
@@ -228,7 +245,7 @@ class PairwiseSum:
         self.count = 0
 
     def add(self, contribution: np.ndarray) -> None:
-        """Add the next chunk's contribution (float64, ``image × spp``)."""
+        """Add the next chunk's contribution (float64, ``image × spp``; NumPy or Dr.Jit)."""
         node, value = Node(0, self.start + self.count), contribution
         self.count += 1
         while self._stack and self._stack[-1][0].level == node.level and self._stack[-1][0].index == node.index - 1 \
@@ -238,17 +255,19 @@ class PairwiseSum:
         self._stack.append((node, value))
 
     def total(self) -> np.ndarray:
-        """The sum of the chunks added so far, folded right to left (as the tree adds them)."""
-        return self.fold(self.partials())
+        """The sum of the chunks added so far, folded right to left (as the tree adds them), as NumPy float64."""
+        return np.asarray(self.fold(self.partials()), dtype=np.float64)
 
     def partials(self) -> tuple:
         """The partial sums held now, largest first (arrays that are never modified in place)."""
         return tuple(value for _, value in self._stack)
 
     def node_sums(self, chunk_count: int) -> dict[Node, np.ndarray]:
-        """The sums of :func:`tree_nodes` of the chunks added so far (in a ``chunk_count``-chunk schedule)."""
+        """The sums of :func:`tree_nodes` of the chunks added so far (in a ``chunk_count``-chunk schedule),
+        as NumPy float64 arrays."""
         run = range(self.start, self.start + self.count)
-        return {node: self.fold([value for held, value in self._stack if node.start <= held.start < node.stop])
+        return {node: np.asarray(self.fold([value for held, value in self._stack if node.start <= held.start < node.stop]),
+                                 dtype=np.float64)
                 for node in tree_nodes(run, chunk_count)}
 
     @staticmethod

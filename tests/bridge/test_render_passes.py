@@ -33,8 +33,9 @@ def test01_schedule_adds_up_to_spp_in_power_of_two_chunks_within_the_memory_boun
             assert set(sizes) <= {sizes[0], 4, 2, 1}  # at most four compiled kernels
             # One pixel, one thread: small chunks, or whole Dr.Jit blocks of a call large for 64 threads.
             assert all(size <= 4 or (16384 % size == 0 and pixels * size > 16384 * 2 * 64) for size in sizes)
-    assert [c.spp for c in schedule.sample_schedule(100, 512 * 512)] == [16] * 6 + [4]
-    assert [c.spp for c in schedule.sample_schedule(4096 + 67, 32 * 24)] == [4096] + [4] * 16 + [2, 1]
+    assert [c.spp for c in schedule.sample_schedule(100, 512 * 512)] == [32] * 3 + [4]
+    assert [c.spp for c in schedule.sample_schedule(256, 720 * 450)] == [16] * 16  # a SIMD packet per pixel
+    assert [c.spp for c in schedule.sample_schedule(8192 + 67, 32 * 24)] == [8192] + [4] * 16 + [2, 1]
     assert [c.spp for c in schedule.sample_schedule(64, 2 * 2)] == [4] * 16  # a tiny film: small chunks only
     assert schedule.sample_schedule(5, 4096 * 4096) == schedule.sample_schedule(5, 4096 * 4096)
 
@@ -48,7 +49,7 @@ def test01b_the_gpu_schedule_keeps_a_pixel_in_one_warp():
             assert all(size & (size - 1) == 0 and size <= schedule.GPU_CHUNK_SPP for size in sizes)
             assert all(size * pixels <= max(schedule.MAX_SAMPLES_PER_PASS, pixels) for size in sizes)
             assert set(sizes) <= {sizes[0], 4, 2, 1}
-            if pixels >= 512 * 512:  # chunks of 16 spp or fewer: the CPU's schedule
+            if pixels >= 512 * 512:  # chunks of 32 spp or fewer: the CPU's schedule
                 assert sizes == [c.spp for c in schedule.sample_schedule(spp, pixels, seed=3)]
     assert [c.spp for c in schedule.sample_schedule(4096 + 67, 32 * 24, gpu=True)] == [32] * 130 + [2, 1]
     assert [c.spp for c in schedule.sample_schedule(64, 2 * 2, gpu=True)] == [32, 32]
@@ -61,14 +62,14 @@ def test02_schedule_refuses_what_cannot_be_rendered():
         schedule.sample_schedule(4, 0)
     with pytest.raises(schedule.ScheduleError, match="2,000,000,000 spp over 4 pixels would take 500,000,000"):
         schedule.sample_schedule(2_000_000_000, 2 * 2)  # Blender's Samples field allows it; refused at once
-    assert len(schedule.sample_schedule(4_000_000, 32 * 24)) == 976 + 576  # 976 x 4096 + 576 x 4 spp
+    assert len(schedule.sample_schedule(4_000_000, 32 * 24)) == 488 + 576  # 488 x 8192 + 576 x 4 spp
 
 
 def test03_chunk_seeds_differ_across_chunks_and_user_seeds():
     seeds = {render.pass_seed(seed, index) for seed in range(20) for index in range(200)}
     assert len(seeds) == 20 * 200
     assert all(0 <= s < 2 ** 32 for s in seeds)
-    assert [c.seed for c in schedule.sample_schedule(64, 10 ** 6, seed=7)] == [
+    assert [c.seed for c in schedule.sample_schedule(64, 2 * 10 ** 6, seed=7)] == [
         render.pass_seed(7, i) for i in range(16)]
 
 
