@@ -101,7 +101,8 @@ def load_scene(description: SceneDescription, settings: RenderSettings, *, insta
 
     kept = contextlib.nullcontext() if keep_tables is None else kept_between_renders(keep_tables)
     with kept:
-        return mi.load_dict(scene_dict(description, settings, InMemory(), instancing=instancing))
+        # (serial: see resources._mesh; the shapes and BSDFs are objects already, little is left to parallelise)
+        return mi.load_dict(scene_dict(description, settings, InMemory(), instancing=instancing), parallel=False)
 
 
 def _unique(names: set, name: str) -> str:

@@ -117,12 +117,15 @@ class InMemory:
     def _mesh(self, name, positions, faces, normals, uvs, bsdf, emitter, material_key):
         import mitsuba as mi
 
+        # (serial loads: Mitsuba's parallel loader would construct the Python scratch BSDF on one of its
+        # worker threads beside other plugins, which Mitsuba does not promise to support, mitsuba3 #457;
+        # a rare "failed to instantiate ... basic_string::_M_create" was seen that way, docs/rendering.md)
         if material_key not in self._bsdfs:
-            self._bsdfs[material_key] = mi.load_dict(bsdf)
+            self._bsdfs[material_key] = mi.load_dict(bsdf, parallel=False)
         props = mi.Properties()
         props["bsdf"] = self._bsdfs[material_key]
         if emitter is not None:
-            props["emitter"] = mi.load_dict(emitter)
+            props["emitter"] = mi.load_dict(emitter, parallel=False)
         result = mi.Mesh(name, len(positions), len(faces), props=props,
                          has_vertex_normals=normals is not None, has_vertex_texcoords=uvs is not None)
         params = mi.traverse(result)
