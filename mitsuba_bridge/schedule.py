@@ -266,13 +266,13 @@ class PairwiseSum:
         """The sums of :func:`tree_nodes` of the chunks added so far (in a ``chunk_count``-chunk schedule),
         as NumPy float64 arrays."""
         run = range(self.start, self.start + self.count)
-        return {node: np.asarray(self.fold([value for held, value in self._stack if node.start <= held.start < node.stop]),
-                                 dtype=np.float64)
-                for node in tree_nodes(run, chunk_count)}
+        inside = lambda node: [value for held, value in self._stack if node.start <= held.start < node.stop]
+        return {node: np.asarray(self.fold(inside(node)), dtype=np.float64) for node in tree_nodes(run, chunk_count)}
 
     @staticmethod
-    def fold(partials) -> np.ndarray:
-        """``partials[0] + (partials[1] + (... + partials[-1]))``: how the tree adds a run's partial sums."""
+    def fold(partials):
+        """``partials[0] + (partials[1] + (... + partials[-1]))``: how the tree adds a run's partial sums
+        (NumPy or Dr.Jit arrays, as added)."""
         if not partials:
             raise ValueError("no chunk added yet")
         value = partials[-1]

@@ -101,7 +101,11 @@ def load_scene(description: SceneDescription, settings: RenderSettings, *, insta
 
     kept = contextlib.nullcontext() if keep_tables is None else kept_between_renders(keep_tables)
     with kept:
-        # (serial: see resources._mesh; the shapes and BSDFs are objects already, little is left to parallelise)
+        # Serial: Mitsuba's parallel loader instantiates siblings in whatever order its threads run, and so
+        # numbers them: the area lights (rectangles, discs, spheres) and the world took emitter IDs 1 and 2
+        # either way round, a literal in the render kernel, whose hash then changed and whose 1-25 s compile
+        # the disk cache no longer saved (2 of 23 engine renders of the Fig. 9 grating under load; 0 of 16
+        # serially; docs/rendering.md). The shapes and BSDFs are objects already: little is left to parallelise.
         return mi.load_dict(scene_dict(description, settings, InMemory(), instancing=instancing), parallel=False)
 
 
