@@ -102,6 +102,26 @@ def test04_parts_cover_the_schedule_and_their_tree_nodes_sum_to_the_single_machi
             assert merged.tobytes() == whole.tobytes(), (count, parts)
 
 
+def test04b_sums_kept_as_dr_jit_arrays_are_the_numpy_sums_bit_for_bit(variant):
+    """A render keeps its chunks' contributions on the device (``render._contribution``, Dr.Jit float64):
+    the same tree of IEEE additions, so the same bits as NumPy's, totals and a part's nodes alike."""
+    import mitsuba as mi
+
+    rng = np.random.default_rng(1)
+    count, spps = 13, [16] * 12 + [4]
+    # float32 images spanning many magnitudes, as chunk images are (glints beside dark pixels)
+    images = (rng.random((count, 3, 5, 4)) * 10.0 ** rng.integers(-6, 6, (count, 3, 5, 4))).astype(np.float32)
+    on_host, on_device = schedule.PairwiseSum(), schedule.PairwiseSum()
+    for image, spp in zip(images, spps):
+        on_host.add(np.multiply(image, float(spp), dtype=np.float64))
+        on_device.add(render._contribution(mi.TensorXf(image), spp))
+    assert type(on_device.partials()[0]).__name__.startswith("TensorXf64")  # kept on the device
+    assert on_device.total().tobytes() == on_host.total().tobytes()
+    host_nodes, device_nodes = on_host.node_sums(count), on_device.node_sums(count)
+    assert list(device_nodes) == list(host_nodes)
+    assert all(device_nodes[n].tobytes() == host_nodes[n].tobytes() for n in host_nodes)
+
+
 def test05_parts_split_at_most_into_as_many_as_there_are_chunks():
     assert list(schedule.part_range(2, 3, 10)) == [3, 4, 5]
     with pytest.raises(ValueError, match="at most 2 parts, not 3"):
