@@ -66,7 +66,7 @@ def load(folder: Path, swap: str | None):
     resolver = mi.file_resolver()
     resolver.prepend(str(folder.resolve()))
     try:
-        return mi.load_string(scene_text(folder, swap))
+        return mi.load_string(scene_text(folder, swap), parallel=False)  # (serial: export.load_folder)
     finally:
         del resolver[0]
 
