@@ -220,7 +220,7 @@ def _contribution(image, spp: int):
     the device, the sums cost the host nothing per chunk: reading every chunk's
     image back and adding it with NumPy (~10 ms at 720 × 450) left the
     render's worker threads spinning idle meanwhile (docs/rendering.md, What a
-    chunk costs).  The image comes to the host only when it is shown.
+    chunk's size costs).  The image comes to the host only when it is shown.
     """
     import drjit as dr
 

@@ -18,7 +18,7 @@ machine or spread over many (``--chunk K/N`` and ``merge`` on the command line).
   chunk of fewer spp than the SIMD packet (16 lanes with AVX-512) puts
   several pixels in one packet, whose lanes then diverge in the scratch
   BSDF's loops and branches: measured on the Fig. 9 grating at 720 × 450
-  (docs/rendering.md, What a chunk costs), 256 spp in chunks of 2, 4, 8 and
+  (docs/rendering.md, What a chunk's size costs), 256 spp in chunks of 2, 4, 8 and
   16+ spp rendered at 0.86, 0.92, 0.96 and 1 times the samples per core-second.
 * **Why these sizes: one pixel, one thread.**  Mitsuba adds a pixel's samples
   into the film with atomic float additions, so a pixel whose samples were
@@ -58,7 +58,7 @@ __all__ = ["MAX_SAMPLES_PER_PASS", "MAX_CHUNKS", "SMALL_CHUNK_SPP", "GPU_CHUNK_S
            "sample_schedule", "chunk_spp", "pass_seed", "part_range", "tree_nodes", "tree_sum", "root", "PairwiseSum"]
 
 #: Samples per ``mi.render`` call (a chunk): 720 × 450 takes 16 spp (one pixel per 16-lane SIMD packet),
-#: 1080p 4; Esc waits for the chunk in flight (docs/rendering.md, What a chunk costs).
+#: 1080p 4; Esc waits for the chunk in flight (docs/rendering.md, What a chunk's size costs).
 MAX_SAMPLES_PER_PASS = 1 << 23
 #: More chunks than this is a mistake (hours of per-call overhead alone), refused before anything starts.
 MAX_CHUNKS = 1 << 20
