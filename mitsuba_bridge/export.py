@@ -55,7 +55,7 @@ def load_folder(folder):
     scene_file = folder / SCENE_FILE if folder.is_dir() else folder
     if not scene_file.is_file():
         raise FileNotFoundError(f"{scene_file}: no such scene file (expected an exported folder holding {SCENE_FILE})")
-    # Serial (as builder.load_scene): with Mitsuba's parallel loader a plugin that fails on a worker thread (a
+    # Serial (as builder.load_dict): with Mitsuba's parallel loader a plugin that fails on a worker thread (a
     # corrupt scratch file) could surface as "Child object at index 9 has not been instantiated yet" instead
     # of its own message, and the lights' and the world's emitter numbers (a kernel literal) vary by run.
     return mi.load_file(str(scene_file.resolve()), parallel=False)

@@ -170,7 +170,7 @@ class Session:
         self._sensor_index = {key: index for index, key in enumerate(sensors)}
         # scene_dict adds "shape-…" entries in the order of description.shapes, nothing else starts so.
         self._shape_keys = [key for key in scene_dict if key.startswith("shape-")]
-        self._scene = mi.load_dict(scene_dict, parallel=False)  # (serial: builder.load_scene says why)
+        self._scene = builder.load_dict(scene_dict)
         self._params = mi.traverse(self._scene)
         self._render.reset()
         # The loaded sensors hold their parameters as literals; written once as opaque values now, the
@@ -328,8 +328,6 @@ class Session:
 
     def set_material(self, material_key: str, material) -> None:
         """Replace a material: its BSDF's parameters in place when the kind stays, else a rebuild."""
-        import mitsuba as mi
-
         from .bsdf import plugin_dict
 
         began = time.perf_counter()
@@ -351,22 +349,20 @@ class Session:
                                        unit_scale=material.metres_per_unit, material=material.material,
                                        coherent=material.coherent, diffuse_reflectance=material.diffuse_reflectance
                                        and {"type": "rgb", "value": list(material.diffuse_reflectance)})
-                if self._copy_from(prefix, mi.load_dict(settings, parallel=False)):
+                if self._copy_from(prefix, builder.load_dict(settings)):
                     if material.scratches is not old.scratches:
                         self.set_scratches(material_key, material.scratches)
                     self._updated("material", began)
                     return
         elif type(material) is type(old):
             bsdf = builder.bsdf_dict(material, builder.InMemory(), key=material_key)
-            if self._copy_from(prefix, mi.load_dict(bsdf, parallel=False)):
+            if self._copy_from(prefix, builder.load_dict(bsdf)):
                 self._updated("material", began)
                 return
         self._rebuild(self.description, "material kind")
 
     def set_light(self, index: int, light) -> None:
         """Replace light ``index`` of the description: its emitter's parameters when the type stays."""
-        import mitsuba as mi
-
         from .builder import light_dict
 
         began = time.perf_counter()
@@ -375,22 +371,20 @@ class Session:
         self.description = dataclasses.replace(self.description, lights=tuple(lights))
         same_type = (type(old) is type(light)
                      and (getattr(old, "radius", 0.0) > 0) == (getattr(light, "radius", 0.0) > 0))
-        if same_type and self._copy_from(f"light-{index}.", mi.load_dict(light_dict(light), parallel=False)):
+        if same_type and self._copy_from(f"light-{index}.", builder.load_dict(light_dict(light))):
             self._updated("light", began)
         else:
             self._rebuild(self.description, "light type")
 
     def set_world(self, world) -> None:
         """Replace the world: its emitter's parameters when the type stays."""
-        import mitsuba as mi
-
         from .builder import world_dict
 
         began = time.perf_counter()
         old = self.description.world
         self.description = dataclasses.replace(self.description, world=world)
         if (old is not None and world is not None and type(old) is type(world)
-                and self._copy_from("world.", mi.load_dict(world_dict(world, builder.InMemory()), parallel=False))):
+                and self._copy_from("world.", builder.load_dict(world_dict(world, builder.InMemory())))):
             self._updated("world", began)
         else:
             self._rebuild(self.description, "world type")

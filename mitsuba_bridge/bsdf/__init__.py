@@ -109,7 +109,7 @@ def load(scratches=None, **settings):
     import mitsuba as mi
 
     register()
-    return mi.load_dict(plugin_dict(scratches, **settings), parallel=False)  # (a Python plugin: serial, builder)
+    return mi.load_dict(plugin_dict(scratches, **settings), parallel=False)  # (serial: builder.load_dict says why)
 
 
 def scratch_parameters(scratches) -> dict:

@@ -14,12 +14,12 @@ from ..scene import Mask, RenderSettings, SceneDescription, Transparent, walk_ma
 from .camera import film_dict, integrator_dict, sensor_dict, window_camera
 from .lights import light_dict, world_dict
 from .materials import add_weights, bsdf_dict, emitter_dict
-from .resources import InMemory, ToFolder, safe_name
+from .resources import InMemory, ToFolder, load_dict, safe_name
 from .transform import to_mitsuba
 
-__all__ = ["scene_dict", "load_scene", "InMemory", "ToFolder", "sensor_dict", "film_dict", "integrator_dict",
-           "window_camera", "bsdf_dict", "emitter_dict", "add_weights", "light_dict", "world_dict", "material_id",
-           "MIN_INSTANCES"]
+__all__ = ["scene_dict", "load_scene", "load_dict", "InMemory", "ToFolder", "sensor_dict", "film_dict",
+           "integrator_dict", "window_camera", "bsdf_dict", "emitter_dict", "add_weights", "light_dict", "world_dict",
+           "material_id", "MIN_INSTANCES"]
 
 #: Shapes showing one mesh with one material at least this often share it through a ``shapegroup``.
 MIN_INSTANCES = 2
@@ -95,18 +95,11 @@ def load_scene(description: SceneDescription, settings: RenderSettings, *, insta
     previous final render where the scratch set is unchanged and keeps this scene's; False forgets any
     kept tables; None (the viewport, exports, tests) leaves them alone (:mod:`..bsdf.persistent`).
     """
-    import mitsuba as mi
-
     from ..bsdf.persistent import kept_between_renders
 
     kept = contextlib.nullcontext() if keep_tables is None else kept_between_renders(keep_tables)
     with kept:
-        # Serial: Mitsuba's parallel loader instantiates siblings in whatever order its threads run, and so
-        # numbers them: the area lights (rectangles, discs, spheres) and the world took emitter IDs 1 and 2
-        # either way round, a literal in the render kernel, whose hash then changed and whose 1-25 s compile
-        # the disk cache no longer saved (2 of 23 engine renders of the Fig. 9 grating under load; 0 of 16
-        # serially; docs/rendering.md). The shapes and BSDFs are objects already: little is left to parallelise.
-        return mi.load_dict(scene_dict(description, settings, InMemory(), instancing=instancing), parallel=False)
+        return load_dict(scene_dict(description, settings, InMemory(), instancing=instancing))
 
 
 def _unique(names: set, name: str) -> str:

@@ -69,6 +69,23 @@ def _bitmap_options(texture: Texture, colour: bool) -> dict:
     }
 
 
+def load_dict(description: dict):
+    """``mi.load_dict(description)``, serially: every scene, BSDF, light and world the bridge loads goes here.
+
+    Mitsuba's parallel loader instantiates siblings in whatever order its threads run, and numbers them so:
+    the area lights (rectangles, discs, spheres: loaded with the scene) and the world took emitter IDs 1
+    and 2 either way round, a literal in the render kernel, whose hash then changed and whose 1-25 s compile
+    Dr.Jit's disk cache no longer saved (2 of 23 engine renders of the Fig. 9 grating under load, 0 of 16
+    serially). It also kept the Python scratch BSDF on its worker threads beside other plugins, which
+    Mitsuba does not promise to support (mitsuba3 #457; a rare "failed to instantiate ...
+    basic_string::_M_create" was seen that way). See docs/rendering.md, What a chunk's size costs. The
+    shapes and BSDFs of a scene are objects already: little is left to parallelise.
+    """
+    import mitsuba as mi
+
+    return mi.load_dict(description, parallel=False)
+
+
 class InMemory:
     """Resources for rendering straight from memory."""
 
@@ -117,15 +134,12 @@ class InMemory:
     def _mesh(self, name, positions, faces, normals, uvs, bsdf, emitter, material_key):
         import mitsuba as mi
 
-        # (serial loads: Mitsuba's parallel loader would construct the Python scratch BSDF on one of its
-        # worker threads beside other plugins, which Mitsuba does not promise to support, mitsuba3 #457;
-        # a rare "failed to instantiate ... basic_string::_M_create" was seen that way, docs/rendering.md)
         if material_key not in self._bsdfs:
-            self._bsdfs[material_key] = mi.load_dict(bsdf, parallel=False)
+            self._bsdfs[material_key] = load_dict(bsdf)
         props = mi.Properties()
         props["bsdf"] = self._bsdfs[material_key]
         if emitter is not None:
-            props["emitter"] = mi.load_dict(emitter, parallel=False)
+            props["emitter"] = load_dict(emitter)
         result = mi.Mesh(name, len(positions), len(faces), props=props,
                          has_vertex_normals=normals is not None, has_vertex_texcoords=uvs is not None)
         params = mi.traverse(result)
