@@ -52,6 +52,8 @@ class Model:
     coherent: bool
     eta: object = None  #: mi.Texture or None (perfect mirror)
     k: object = None
+    #: fresnel.ConductorSpectra of eta and k where they are a named material's (one gather per wavelength), else None
+    spectra: object = None
     diffuse: object = None  #: mi.Texture or None
     depth_phase: str = "kirchhoff"  #: or "incidence", "bounded" (docs/bsdf.md, Energy)
     #: correct crossings of pieces to the height field (docs/model.md §3.4; coherent mode)
@@ -71,6 +73,8 @@ class Model:
     def _reflectance(self, si, cos_theta, active):
         if self.eta is None:
             return mi.Spectrum(1.0)
+        if self.spectra is not None:
+            return fresnel_conductor(cos_theta, *self.spectra.eval(si.wavelengths, active))
         return fresnel_conductor(cos_theta, self.eta.eval(si, active), self.k.eval(si, active))
 
     def _hero(self, si):

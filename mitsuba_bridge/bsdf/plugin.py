@@ -10,7 +10,7 @@ import mitsuba as mi
 
 from .. import scratch
 from . import handoff, memory, parameters, persistent, tables
-from .fresnel import material_textures
+from .fresnel import ConductorSpectra, material_textures
 from .lookup import Grid
 from .model import Model
 from .incremental import update_tables
@@ -260,8 +260,11 @@ def _make_class() -> type:
         def _rebuild_model(self):
             sigma = dr.opaque(mi.Float, dr.slice(self.coherence_diameter) * (1e6 / 6.0))
             scale = dr.opaque(mi.Float, dr.slice(self.unit_scale) * 1e6)
+            # (rebuilt here: a parameter update may have changed the spectra's values)
+            spectra = ConductorSpectra.of(self.eta, self.k) \
+                if self.eta is not None and ConductorSpectra.matches(self.eta, self.k) else None
             self.model = Model(grid=self.grid, sigma=sigma, micrometres_per_unit=scale,
-                               coherent=self.coherent, eta=self.eta, k=self.k, diffuse=self.diffuse,
+                               coherent=self.coherent, eta=self.eta, k=self.k, spectra=spectra, diffuse=self.diffuse,
                                depth_phase=self.depth_phase, height_field=self._height_field)
 
         # ------------------------------------------------------ interface

@@ -133,3 +133,44 @@ def test08_named_materials_load_mitsubas_spectra_and_unknown_names_are_refused()
     assert eta_values[0] > 1.0 > eta_values[2]  # gold: high index in the blue, low in the red
     with pytest.raises(ValueError, match="unknown material 'Unobtainium'.*Al"):
         fresnel.material_textures("Unobtainium")
+
+
+@pytest.mark.parametrize("name", ["Al", "Au", "Cu"])
+def test09_conductor_table_reads_what_the_material_textures_read(name):
+    """The one-gather table (fresnel.ConductorSpectra) returns the textures' values, 0 outside their grid."""
+    import drjit as dr
+
+    eta, k = fresnel.material_textures(name)
+    assert fresnel.ConductorSpectra.matches(eta, k)
+    table = fresnel.ConductorSpectra.of(eta, k)
+    wavelengths = np.random.default_rng(9).uniform(250.0, 950.0, (4, 3000)).astype(np.float32)
+    wavelengths[:, :4] = [[299.0, 885.0, 360.0, 830.0]] * 4  # the grids' ends and the visible range's
+    si = dr.zeros(mi.SurfaceInteraction3f, wavelengths.shape[1])
+    si.wavelengths = mi.Spectrum(*map(floats, wavelengths))
+    got_eta, got_k = (np.asarray(x) for x in table.eval(si.wavelengths))
+    want_eta, want_k = np.asarray(eta.eval(si)), np.asarray(k.eval(si))
+    assert np.count_nonzero(want_eta == 0) > 100  # some wavelengths lie outside the grid
+    np.testing.assert_allclose(got_eta, want_eta, rtol=1e-6, atol=1e-6)
+    np.testing.assert_allclose(got_k, want_k, rtol=1e-6, atol=1e-6)
+
+
+def test10_conductor_table_only_for_regular_spectra_and_keeps_gradients():
+    import drjit as dr
+
+    uniform = mi.load_dict({"type": "uniform", "value": 1.5})
+    irregular = mi.load_dict({"type": "irregular", "wavelengths": "400, 700", "values": "1, 2"})
+    eta, k = fresnel.material_textures("Au")
+    assert not fresnel.ConductorSpectra.matches(uniform, uniform)
+    assert not fresnel.ConductorSpectra.matches(irregular, irregular)
+    values = mi.traverse(eta)["values"]
+    dr.enable_grad(values)
+    params = mi.traverse(eta)
+    params["values"] = values
+    params.update()
+    table = fresnel.ConductorSpectra.of(eta, k)
+    got, _ = table.eval(mi.Spectrum(500.5, 500.5, 500.5, 500.5))
+    dr.backward(dr.sum(got[0]))
+    grad = np.asarray(dr.grad(mi.traverse(eta)["values"]))
+    node = int(round(500.5 - 299.0))  # the grid starts at 299 nm, one node per nanometre
+    np.testing.assert_allclose(grad[node - 1:node + 1], [0.5, 0.5], rtol=1e-6)
+    assert np.count_nonzero(grad) == 2

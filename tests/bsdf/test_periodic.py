@@ -25,16 +25,16 @@ PITCH, TRACKS, HALF_LENGTH, SIGMA = 1.2, 81, 200.0, 2.0
 CELL_UV = 1.0 / 16.0
 
 
-def grating(profile=ref.RECT, *, drop=(), wide=(), crossing=False, jitter=0.0, split=False, seed=0):
-    """The grating as reference Scratches: ``drop`` tracks left out, ``wide`` ones wider, an optional
-    scratch across it, offsets jittered by up to ``jitter`` µm, tracks cut into collinear halves."""
+def grating(profile=ref.RECT, *, drop=(), wide=(), crossing=False, jitter=0.0, split=False, seed=0, width_um=0.6):
+    """The grating as reference Scratches of ``width_um``: ``drop`` tracks left out, ``wide`` ones wider, an
+    optional scratch across it, offsets jittered by up to ``jitter`` µm, tracks cut into collinear halves."""
     rng = np.random.default_rng(seed)
     scratches = []
     for k in range(TRACKS):
         if k in drop:
             continue
         y = (k - TRACKS // 2) * PITCH + rng.uniform(-jitter, jitter)
-        width = 0.9 if k in wide else 0.6
+        width = 0.9 if k in wide else width_um
         if split:
             scratches += [ref.Scratch((-HALF_LENGTH, y), (30.0, y), width, 0.2, profile),
                           ref.Scratch((30.0, y), (HALF_LENGTH, y), width, 0.2, profile)]
@@ -375,14 +375,17 @@ def test13_kink_windows_across_cells_and_single_runs_by_their_end_line(profile, 
     assert relative_l2(pdf[kink], scan_pdf[kink]) < 1e-4
 
 
-@pytest.mark.parametrize("profile,uv_map,split", [(ref.RECT, "plain", False), (ref.TRI, "shear", True),
-                                                  (ref.RECT, "mirror", False)])
-def test14_incoherent_closed_form_equals_the_scan(profile, uv_map, split):
+@pytest.mark.parametrize("profile,uv_map,split,width_um", [
+    (ref.RECT, "plain", False, 0.6), (ref.TRI, "shear", True, 0.6), (ref.RECT, "mirror", False, 0.6),
+    (ref.RECT, "plain", False, 0.4), (ref.TRI, "shear", False, 0.4)])
+def test14_incoherent_closed_form_equals_the_scan(profile, uv_map, split, width_um):
     """Incoherently a run of tracks sums to the along factor's square times (σ/P) the squared groove
     transform averaged over the squared window's transform (Poisson's order 0, a 4-point Gauss–Hermite
-    rule; docs/model.md §3.5).  The scan drops tracks beyond 4σ at e^-16 of the intensity each: the two
-    agree to ~1e-6 (measured 0.7–3·10⁻⁶), asserted at 1e-4; the pdf to ~1e-7."""
-    bsdf = load(grating(profile, split=split), coherent=False)
+    rule, 2 points for grooves of W <= σ/4 as the 0.4-µm ones; docs/model.md §3.5).  The scan drops tracks
+    beyond 4σ at e^-16 of the intensity each: the two agree to ~1e-6 (measured 0.7–3·10⁻⁶), asserted at
+    1e-4; the pdf to ~1e-7."""
+    assert (width_um <= periodic.NARROW_GROOVE_SIGMAS * SIGMA) == (width_um == 0.4)  # both rules are tested
+    bsdf = load(grating(profile, split=split, width_um=width_um), coherent=False)
     rng = np.random.default_rng(15)
     count = 1 << 13
     si, _ = lanes(count, rng, uv_map=uv_map)
