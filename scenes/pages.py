@@ -69,6 +69,7 @@ def benchmark_rows(figures, records: dict) -> list[dict]:
                 "paper_minutes": render.paper_minutes, "paper_mp": render.paper_megapixels,
                 "paper_per_core_s": render.paper_samples_per_core_second,
                 "peak_mb": record["peak_mb"], "load_s": record["scratch_load_s"],
+                "tables_read": record.get("tables_read"), "tables_built": record.get("tables_built"),
                 "scratches": record["scratches"], "segments": record["segments"],
                 "build_s": record["build_s"], "total_s": record["total_s"],
                 # the machine reference of the run that rendered this picture (None before they were kept)
@@ -230,6 +231,16 @@ def load_reference(output: Path) -> dict | None:
     return json.loads(path.read_text()) if path.exists() else None
 
 
+def _tables_source(row: dict) -> str:
+    """Whether the render built its scratch tables or read them from the disk cache ("—": not recorded)."""
+    read, built = row.get("tables_read"), row.get("tables_built")
+    if read is None:
+        return "—"
+    if read and not built:
+        return "read"
+    return "built" if not read else "built and read"
+
+
 def _reference_lines(rows: list[dict]) -> list[str]:
     references = [r["reference"] for r in rows if r["reference"]]
     runs = list({json.dumps(reference, sort_keys=True): reference for reference in references}.values())
@@ -262,15 +273,19 @@ def _benchmarks(figures, records: dict) -> str:
              "path (hero wavelength sampling, docs/model.md §5–6), so one of our samples carries a quarter of the "
              "spectral information of one of theirs: per wavelength sample, divide the ratio by 4. The render "
              "call includes gathering the scene, building the scratch tables and compiling the kernels; "
-             "*passes only* charges that set-up (mostly one thread) to one core and counts the rest.", "",
+             "*passes only* charges that set-up (mostly one thread) to one core and counts the rest. Kernels and "
+             "tables come from their caches where an earlier render of the same scene compiled or built them, as "
+             "for any render after a user's first: column *tables* says whether this render built them or read "
+             "them from the disk cache (docs/rendering.md); *scratch set → BSDF* is the build's own time either "
+             "way.", "",
              "**Per wavelength sample** is that ratio divided by 4; the target (issue 12) is at least 2× "
              "the paper per core and per wavelength sample on every scene. Renders beyond the paper (options the "
              "paper does not have) have no paper time.", "",
              *_reference_lines(rows),
              "| picture | pixels × spp | render (wall) | of it passes | samples / core-s | passes only | "
              "÷ reference | paper | paper samples / core-s | ratio | per wavelength sample | peak memory | "
-             "scratch set → BSDF | scratches (segments) |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "scratch set → BSDF | tables | scratches (segments) |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         if r["paper_per_core_s"]:
             paper = f"{r['paper_minutes']:g} min" + ("" if r["paper_mp"] == 4.0 else f" ({r['paper_mp']:g} MP)")
@@ -284,7 +299,7 @@ def _benchmarks(figures, records: dict) -> str:
             f"| {r['label']} | {r['pixels']} | {r['render_s']:.0f} s | {r['passes_s']:.0f} s | "
             f"{r['per_core_s']:.3g} | {r['passes_per_core_s']:.3g} | "
             f"{relative} | {paper} | {versus} | {r['peak_mb']:,.0f} MB | "
-            f"{r['load_s']:.2f} s | {r['scratches']:,} ({r['segments']:,}) |")
+            f"{r['load_s']:.2f} s | {_tables_source(r)} | {r['scratches']:,} ({r['segments']:,}) |")
     traced = [r for r in rows if r["traced"]]
     lines += [""]
     if traced:

@@ -9,7 +9,10 @@ compiled kernels never flatter the next:
    engine (``bpy.ops.render.render``), as ``blender -b file.blend -f 1`` would,
    writing ``<name>.exr`` (linear) and ``<name>.png`` (the scene's view
    transform); then, apart from the render, times loading the object's
-   scratch set into the BSDF.  Its statistics go to ``<name>.json``.
+   scratch set into the BSDF (building its tables: the disk cache off).  Its
+   statistics go to ``<name>.json``, with whether the render read its tables
+   from the disk cache (``mitsuba_bridge/bsdf/disk_cache.py``), as any render
+   after the first of a set does.
 
 Before the first picture and after the last, a third worker renders Mitsuba's own Cornell box
 (``reference``): the machine reference that the benchmark table divides its rows by.
@@ -24,6 +27,7 @@ draws its figure, and :mod:`.pages` writes ``docs/gallery.md``,
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import json
 import os
@@ -102,13 +106,27 @@ def _scratch_statistics(bpy) -> dict:
         began = time.perf_counter()
         scratches = scratch.loads(data)
         settings = obj.scratch_iridescence  # as the render loads it (the mode decides what is built)
-        loaded = bsdf.load(scratches, unit_scale=1.0, coherent=bool(settings.coherent),
-                           depth_phase=settings.depth_phase, crossings=settings.crossings)
+        with _tables_disk_cache_off():  # the build's own time, not a read of the file the render may have written
+            loaded = bsdf.load(scratches, unit_scale=1.0, coherent=bool(settings.coherent),
+                               depth_phase=settings.depth_phase, crossings=settings.crossings)
         load_s += time.perf_counter() - began
         del loaded
         count += scratches.count
         segments += scratches.vertex_count - scratches.count
     return {"scratches": count, "segments": segments, "scratch_load_s": load_s}
+
+
+@contextlib.contextmanager
+def _tables_disk_cache_off():
+    previous = os.environ.get("SCRATCH_IRIDESCENCE_CACHE_DIR")
+    os.environ["SCRATCH_IRIDESCENCE_CACHE_DIR"] = "off"
+    try:
+        yield
+    finally:
+        if previous is None:
+            del os.environ["SCRATCH_IRIDESCENCE_CACHE_DIR"]
+        else:
+            os.environ["SCRATCH_IRIDESCENCE_CACHE_DIR"] = previous
 
 
 def render_worker(blend: Path, output: Path) -> dict:
@@ -125,6 +143,8 @@ def render_worker(blend: Path, output: Path) -> dict:
     wall, cpu = time.perf_counter(), _cpu_seconds()
     bpy.ops.render.render(write_still=True)
     wall, cpu = time.perf_counter() - wall, _cpu_seconds() - cpu
+    from ..mitsuba_bridge.bsdf import disk_cache
+    tables = disk_cache.statistics()  # whether the render read its scratch tables from an earlier one's file
     peak = _peak_mb()
     # RGB (no alpha channel) at the strongest compression: the gallery commits these files.
     settings.file_format, settings.color_depth, settings.color_mode, settings.compression = "PNG", "8", "RGB", 100
@@ -132,7 +152,8 @@ def render_worker(blend: Path, output: Path) -> dict:
     width, height = scene.render.resolution_x, scene.render.resolution_y
     return {"open_s": opened, "render_s": wall, "render_cpu_s": cpu, "peak_mb": peak,
             "width": width, "height": height, "spp": scene.scratch_iridescence.samples,
-            "exr": str(stem) + ".exr", "png": str(stem) + ".png", **_scratch_statistics(bpy)}
+            "exr": str(stem) + ".exr", "png": str(stem) + ".png", "tables_read": tables["hits"],
+            "tables_built": tables["misses"], **_scratch_statistics(bpy)}
 
 
 #: The machine reference: Mitsuba's own Cornell box (no scratches, no add-on), this size and spp.

@@ -8,11 +8,18 @@ test itself and keeps no database.  Set ``HYPOTHESIS_PROFILE=explore`` to search
 new examples (failures print a ``@reproduce_failure`` blob to pin them down).
 
 The real libLLVM 15, where installed, serves the LLVM-15 simulations.
+
+The scratch tables' disk cache (``mitsuba_bridge/bsdf/disk_cache.py``) is a fresh
+folder per run, inherited by the tests' subprocesses: a run never reads what an
+earlier one wrote, nor writes into the user's cache.
 """
 from __future__ import annotations
 
+import atexit
 import glob
 import os
+import shutil
+import tempfile
 
 import pytest
 from hypothesis import settings
@@ -20,6 +27,9 @@ from hypothesis import settings
 settings.register_profile("deterministic", derandomize=True, database=None, print_blob=True)
 settings.register_profile("explore", derandomize=False, print_blob=True)
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "deterministic"))
+_TABLES_CACHE = tempfile.mkdtemp(prefix="scratch-tables-cache-")
+os.environ["SCRATCH_IRIDESCENCE_CACHE_DIR"] = _TABLES_CACHE
+atexit.register(shutil.rmtree, _TABLES_CACHE, ignore_errors=True)
 #: Where Debian's ``libllvm15`` (or llvm.org's packages) put libLLVM 15.
 LLVM15_PATTERNS = ("/usr/lib/x86_64-linux-gnu/libLLVM-15.so*", "/usr/lib/llvm-15/lib/libLLVM-15.so*")
 

@@ -31,7 +31,7 @@ from .segment import SegmentGeometry
 from .references import aligned_array
 from .tables import CELL_DILATION, GridTables, aligned, empty_aligned
 
-__all__ = ["Grid", "LocalJacobian", "offset_buckets", "for_each_segment", "replay_pieces", "for_each_crossing", "jacobian",
+__all__ = ["Grid", "ScanArrays", "LocalJacobian", "offset_buckets", "for_each_segment", "replay_pieces", "for_each_crossing", "jacobian",
            "segment_at"]
 
 #: References per offset bucket (a query scans half a bucket below its window on average).
@@ -95,25 +95,21 @@ class Grid:
         """The tables as Dr.Jit arrays; ``periodic``: also find their periodic families (dense sets only;
         a model that never sums them in closed form saves their build); ``continuation``: also upload
         how far each piece's groove runs straight on (the incoherent model joins such pieces)."""
-        bucketed = references_per_occupied_cell(tables.cell_start) > BUCKETED_ABOVE
-        if bucketed:
-            scan_frames, cell_bucket, bucket_start = offset_buckets(tables.cell_start, tables.offsets,
-                                                                    tables.cell_frames)
-        else:  # the sparse scan reads the normals only, the first two columns of the tables' own frames
-            scan_frames = tables.cell_frames  # (no buckets: their build costs ~7 % of the tables' own)
-            cell_bucket = bucket_start = aligned(np.zeros(2, np.uint32))
+        return cls.from_arrays(tables, ScanArrays.of(tables, periodic), continuation)
+
+    @classmethod
+    def from_arrays(cls, tables: GridTables, scan: "ScanArrays", continuation: bool = False) -> "Grid":
+        """:meth:`upload` with the scan's arrays already built (:class:`ScanArrays`, or read from the disk
+        cache, :mod:`.disk_cache`)."""
         rounding = max(tables.margin - CELL_DILATION, 0.0)
-        families = periodic_families(tables.cell_start, tables.references, tables.segments, tables.cell_frames,
-                                     tables.origin, tables.cell_size, tables.shape,
-                                     tables.continuation) if bucketed and periodic else None
         return cls(
             segments=aligned_array(mi.Float, tables.segments.ravel()),
             references=aligned_array(mi.UInt32, tables.references),
             offsets=aligned_array(mi.Float, tables.offsets),
-            scan_frames=aligned_array(mi.Float, scan_frames.ravel()),
+            scan_frames=aligned_array(mi.Float, scan.scan_frames.ravel()),
             cell_start=aligned_array(mi.UInt32, tables.cell_start),
-            cell_bucket=aligned_array(mi.UInt32, cell_bucket),
-            bucket_start=aligned_array(mi.UInt32, bucket_start),
+            cell_bucket=aligned_array(mi.UInt32, scan.cell_bucket),
+            bucket_start=aligned_array(mi.UInt32, scan.bucket_start),
             origin_u=dr.opaque(mi.Float, tables.origin[0]),
             origin_v=dr.opaque(mi.Float, tables.origin[1]),
             inverse_cell_size=dr.opaque(mi.Float, 1.0 / tables.cell_size),
@@ -125,13 +121,45 @@ class Grid:
             crossing_partner=aligned_array(mi.UInt32, tables.crossing_partner),
             crossing_along=aligned_array(mi.Float, tables.crossing_along),
             max_width=dr.opaque(mi.Float, float(tables.segments[:tables.piece_count, 6].max(initial=0.0))),
-            bucketed=bucketed,
-            family_frames=None if families is None else aligned_array(mi.Float, families.frames.ravel()),
+            bucketed=scan.bucketed,
+            family_frames=None if scan.family_frames is None else aligned_array(mi.Float, scan.family_frames.ravel()),
             cell_size=dr.opaque(mi.Float, tables.cell_size),
-            family_count=0 if families is None else families.families,
-            kink_count=0 if families is None else families.kinks,
+            family_count=scan.family_count,
+            kink_count=scan.kink_count,
             continuation=aligned_array(mi.Float, _relative_continuation(tables).ravel()) if continuation else None,
             triangular=_profiles(tables))
+
+
+@dataclass(frozen=True, eq=False)
+class ScanArrays:
+    """What :meth:`Grid.upload` builds on the CPU besides :class:`.tables.GridTables` (numpy): the offset
+    buckets and the periodic families, the costly part of an upload (the grating's families: 0.2 s)."""
+
+    bucketed: bool  #: :attr:`Grid.bucketed`
+    scan_frames: np.ndarray  #: (cells, 4) float32
+    cell_bucket: np.ndarray  #: uint32
+    bucket_start: np.ndarray  #: uint32
+    family_frames: np.ndarray | None = None  #: :attr:`.periodic.PeriodicTables.frames`, or None
+    family_count: int = 0
+    kink_count: int = 0
+
+    @classmethod
+    def of(cls, tables: GridTables, periodic: bool = True) -> "ScanArrays":
+        """Built from ``tables``; ``periodic``: with the periodic families (bucketed sets only)."""
+        bucketed = references_per_occupied_cell(tables.cell_start) > BUCKETED_ABOVE
+        if bucketed:
+            scan_frames, cell_bucket, bucket_start = offset_buckets(tables.cell_start, tables.offsets,
+                                                                    tables.cell_frames)
+        else:  # the sparse scan reads the normals only, the first two columns of the tables' own frames
+            scan_frames = tables.cell_frames  # (no buckets: their build costs ~7 % of the tables' own)
+            cell_bucket = bucket_start = aligned(np.zeros(2, np.uint32))
+        families = periodic_families(tables.cell_start, tables.references, tables.segments, tables.cell_frames,
+                                     tables.origin, tables.cell_size, tables.shape,
+                                     tables.continuation) if bucketed and periodic else None
+        if families is None:
+            return cls(bool(bucketed), scan_frames, cell_bucket, bucket_start)
+        return cls(bool(bucketed), scan_frames, cell_bucket, bucket_start, families.frames, int(families.families),
+                   int(families.kinks))
 
 
 def _profiles(tables: GridTables):

@@ -89,14 +89,14 @@ def kept_between_renders(enabled: bool):
 
 def reuse_or_build(scratches, options: tuple, build) -> Shared:
     """Tables for a new BSDF: those of a live or kept BSDF with an equal set and ``options``, else
-    ``build()``'s.  Kept when a persistent load is open."""
+    ``build(key)``'s (``key``: the digest of the set and options).  Kept when a persistent load is open."""
     options = (_variant(), *options)  # a shared LLVM array cannot serve a CUDA render
     key = _digest(scratches, options)
     with _lock:
         shared = _kept.get(key) or _find_live(key, scratches.count, options)
     reused = shared is not None
     if not reused:
-        shared = Shared(build())
+        shared = Shared(build(key))  # (the key also names the build's file in the disk cache, disk_cache.py)
     with _lock:
         if not reused:
             _live.append(_Entry(weakref.ref(shared), options, scratches.count, None, key))

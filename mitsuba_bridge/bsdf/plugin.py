@@ -5,13 +5,15 @@ per variant by :func:`plugin_class` after ``mi.set_variant``.
 """
 from __future__ import annotations
 
+import time
+
 import drjit as dr
 import mitsuba as mi
 
 from .. import scratch
-from . import handoff, memory, parameters, persistent, tables
+from . import disk_cache, handoff, memory, parameters, persistent, tables
 from .fresnel import ConductorSpectra, material_textures
-from .lookup import Grid
+from .lookup import Grid, ScanArrays
 from .model import Model
 from .incremental import update_tables
 
@@ -238,10 +240,19 @@ def _make_class() -> type:
             continuation = not self.coherent or self._height_field
             previous = getattr(self, "table_cache", None)
 
-            def build():
-                # a set that only appends scratches (a stroke) extends the previous tables (.incremental)
-                cache = update_tables(previous, scratches, self.cell_size, crossings=self._height_field)
-                return cache, Grid.upload(cache.tables, periodic=periodic, continuation=continuation)
+            def build(key=None):
+                # a new BSDF's set (``key``) may have been built by an earlier process (.disk_cache)
+                found = disk_cache.load_tables(key, scratches) if key is not None else None
+                if found is not None:
+                    cache, scan = found
+                else:
+                    began = time.perf_counter()
+                    # a set that only appends scratches (a stroke) extends the previous tables (.incremental)
+                    cache = update_tables(previous, scratches, self.cell_size, crossings=self._height_field)
+                    scan = ScanArrays.of(cache.tables, periodic)
+                    if key is not None and time.perf_counter() - began >= disk_cache.MIN_BUILD_SECONDS:
+                        disk_cache.store_tables(key, cache, scan)
+                return cache, Grid.from_arrays(cache.tables, scan, continuation=continuation)
 
             options = (self.cell_size, self._height_field, periodic, continuation, tables.build_constants())
             if previous is None:  # a new BSDF: another live scene or Persistent Data may hold its tables
