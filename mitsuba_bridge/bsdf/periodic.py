@@ -50,7 +50,9 @@ Units as everywhere in the kernels: µm, 1/µm.
 """
 from __future__ import annotations
 
+import functools
 import math
+import operator
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -942,15 +944,24 @@ def _run_intensity(family: Family, pitch, dx, dy, xi_x, xi_y, kappa, sigma, cut=
             return (kind(total),)
         return rule
 
-    # (the 2-point rule where it is as exact as the scan's own sums: half the groove transforms; whole SIMD
-    # packets of narrow grooves skip the 4-point one)
-    narrow = family.width <= NARROW_GROOVE_SIGMAS * sigma
-    across = dr.if_stmt((nu_perp, kappa), narrow, average(HERMITE_NODES_2, HERMITE_WEIGHTS_2),
-                        average(HERMITE_NODES, HERMITE_WEIGHTS), label="scratch_family_across")[0]
-    across = across * (sigma * dr.rcp(pitch))
+    def across_tracks(nu_perp, kappa):
+        # (the 2-point rule where it is as exact as the scan's own sums: half the groove transforms; whole
+        # SIMD packets of narrow grooves skip the 4-point one)
+        narrow = family.width <= NARROW_GROOVE_SIGMAS * sigma
+        across = dr.if_stmt((nu_perp, kappa), narrow, average(HERMITE_NODES_2, HERMITE_WEIGHTS_2),
+                            average(HERMITE_NODES, HERMITE_WEIGHTS), label="scratch_family_across")[0]
+        return across * (sigma * dr.rcp(pitch))
+
     if cut is None:
-        return across * ((2.0 * math.pi) * sigma * sigma * dr.exp((-4.0 * math.pi ** 2) * sigma * sigma
-                                                                   * nu_par * nu_par))
+        along = (2.0 * math.pi) * sigma * sigma * dr.exp((-4.0 * math.pi ** 2) * sigma * sigma * nu_par * nu_par)
+        # off the tracks' diffraction line (ν∥ beyond ~3/σ: most light samples of a world emitter) the along
+        # factor is 0 in float32 at every wavelength: whole SIMD packets there skip the groove transforms
+        positive = along > 0.0
+        lit = positive if dr.depth_v(positive) == 1 else functools.reduce(operator.or_, positive)
+        return dr.if_stmt((nu_perp, kappa, along), lit,
+                          lambda nu_perp, kappa, along: (kind(across_tracks(nu_perp, kappa) * along),),
+                          lambda nu_perp, kappa, along: (dr.zeros(kind),), label="scratch_family_lit")[0]
+    across = across_tracks(nu_perp, kappa)
     l_x, l_y, h = cut
     l_t = l_x * dx + l_y * dy  # |l·t| >= KINK_MIN_COS
     l_n = l_y * dx - l_x * dy  # l·n, n = (-dy, dx)

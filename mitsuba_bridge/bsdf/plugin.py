@@ -126,7 +126,9 @@ float32 suffices at any object size.  Renders need an unpolarised spectral JIT
 variant (llvm_ad_spectral, cuda_ad_spectral): diffraction colours do not exist
 in RGB.  Sampling: mirror lobe, scratch lines (segment drawn in proportion to
 its diffracted energy) and the diffuse base, combined with the balance
-heuristic; pdf and weights use the first (hero) wavelength.
+heuristic; pdf and weights use the first (hero) wavelength.  The set's lookup
+tables are built when the plugin loads, shared with other live scenes and kept
+on disk for later processes (docs/rendering.md, Scratch tables on disk).
 
 .. code-block:: python
 
