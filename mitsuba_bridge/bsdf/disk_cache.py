@@ -118,13 +118,16 @@ def load(key: bytes) -> dict | None:
             for name, fields in meta["records"].items():
                 records[name] = {field: (archive[f"{name}.{field}"] if kind == "array" else value)
                                  for field, (kind, value) in fields.items()}
-        os.utime(path)  # recently used (the size limit removes the least recently used first)
     except Exception as error:  # a damaged or foreign file: build again, and replace it
         _log.warning("scratch tables cache: %s unreadable (%s: %s); building the tables again",
                      path, type(error).__name__, error)
         _count("damaged")
         _remove(path)
         return None
+    try:
+        os.utime(path)  # recently used (the size limit removes the least recently used first)
+    except OSError:  # a read-only cache (shared by a farm's machines) still serves its files
+        pass
     _count("hits")
     return records
 

@@ -149,7 +149,14 @@ def test04_off_unwritable_or_full_never_fails_a_load(cache, monkeypatch, tmp_pat
     assert "could not write" in caplog.text and blocked.read_text() == "not a folder"
     assert np.abs(evaluate(bsdf)[0]).max() > 0
     monkeypatch.setenv("SCRATCH_IRIDESCENCE_CACHE_DIR", str(cache))
+
+    def read_only(*arguments, **keywords):  # a cache folder shared read-only (root ignores chmod here)
+        raise PermissionError("read-only file system")
+
+    monkeypatch.setattr(disk_cache.os, "utime", read_only)
+    counts = disk_cache.statistics()
     assert all(a.tobytes() == b.tobytes() for a, b in zip(evaluate(load(scratches, coherent=False)), expected))
+    assert disk_cache.statistics()["hits"] == counts["hits"] + 1 and len(list(cache.glob("*.npz"))) == 1
     assert not list(cache.glob(".writing-*"))  # no half-written file left
 
 
