@@ -119,8 +119,9 @@ def load(key: bytes) -> dict | None:
                 records[name] = {field: (archive[f"{name}.{field}"] if kind == "array" else value)
                                  for field, (kind, value) in fields.items()}
     except Exception as error:  # a damaged or foreign file: build again, and replace it
+        # (the message as text: a handler that keeps records must not keep the traceback's frames alive)
         _log.warning("scratch tables cache: %s unreadable (%s: %s); building the tables again",
-                     path, type(error).__name__, error)
+                     path, type(error).__name__, str(error))
         _count("damaged")
         _remove(path)
         return None
@@ -133,7 +134,7 @@ def load(key: bytes) -> dict | None:
 
 
 def store(key: bytes, records: dict) -> bool:
-    """Write ``records`` (``{name: dataclass instance}``; fields: numpy arrays, None, numbers, tuples) under
+    """Write ``records`` (``{name: dataclass instance or dict}``; values: numpy arrays, None, numbers, tuples) under
     ``key``; False where the cache is off or the write failed (nothing is left behind then)."""
     path = _path(key)
     if path is None:
@@ -157,7 +158,7 @@ def store(key: bytes, records: dict) -> bool:
             np.savez(file, **arrays)
         os.replace(temporary, path)
     except (OSError, ValueError, TypeError) as error:
-        _log.warning("scratch tables cache: could not write %s (%s); the render goes on", path, error)
+        _log.warning("scratch tables cache: could not write %s (%s); the render goes on", path, str(error))
         _count("failed_writes")
         if temporary is not None:
             _remove(temporary)
@@ -181,7 +182,7 @@ def load_tables(key: bytes, scratches):
         cache = _restore(TableCache, {**records["cache"], "scratches": scratches, "tables": tables})
         return cache, _restore(ScanArrays, records["scan"])
     except (KeyError, TypeError, ValueError) as error:  # written by other code under the same key: never
-        _log.warning("scratch tables cache: unexpected records (%s); building the tables again", error)
+        _log.warning("scratch tables cache: unexpected records (%s); building the tables again", str(error))
         _count("damaged")
         return None
 
@@ -189,20 +190,14 @@ def load_tables(key: bytes, scratches):
 def store_tables(key: bytes, cache, scan) -> bool:
     """Keep a build (:class:`.incremental.TableCache` and :class:`.lookup.ScanArrays`) under ``key``."""
     cache_fields = {f.name: getattr(cache, f.name) for f in dataclasses.fields(cache)
-                    if f.name not in ("scratches", "tables")}
-    return store(key, {"tables": cache.tables, "scan": scan, "cache": _Fields(cache_fields)})
-
-
-class _Fields:
-    """Named values that :func:`store` writes like a dataclass's fields."""
-
-    def __init__(self, values: dict):
-        self.values = values
+                    if f.name not in ("scratches", "tables")}  # (the set is the caller's; its tables a record)
+    return store(key, {"tables": cache.tables, "scan": scan, "cache": cache_fields})
 
 
 def _fields_of(record) -> list[tuple[str, object]]:
-    if isinstance(record, _Fields):
-        return list(record.values.items())
+    """A record's named values: a dict's items or a dataclass's fields."""
+    if isinstance(record, dict):
+        return list(record.items())
     return [(field.name, getattr(record, field.name)) for field in dataclasses.fields(record)]
 
 
