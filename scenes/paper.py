@@ -27,7 +27,6 @@ draws its figure, and :mod:`.pages` writes ``docs/gallery.md``,
 from __future__ import annotations
 
 import argparse
-import contextlib
 import importlib
 import json
 import os
@@ -36,6 +35,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from unittest import mock
 
 from ..mitsuba_bridge.render import TRACED_NOTE_PREFIX
 
@@ -106,7 +106,8 @@ def _scratch_statistics(bpy) -> dict:
         began = time.perf_counter()
         scratches = scratch.loads(data)
         settings = obj.scratch_iridescence  # as the render loads it (the mode decides what is built)
-        with _tables_disk_cache_off():  # the build's own time, not a read of the file the render may have written
+        # the build's own time, not a read of the file the render may have written (bsdf/disk_cache.py)
+        with mock.patch.dict(os.environ, {"SCRATCH_IRIDESCENCE_CACHE_DIR": "off"}):
             loaded = bsdf.load(scratches, unit_scale=1.0, coherent=bool(settings.coherent),
                                depth_phase=settings.depth_phase, crossings=settings.crossings)
         load_s += time.perf_counter() - began
@@ -114,19 +115,6 @@ def _scratch_statistics(bpy) -> dict:
         count += scratches.count
         segments += scratches.vertex_count - scratches.count
     return {"scratches": count, "segments": segments, "scratch_load_s": load_s}
-
-
-@contextlib.contextmanager
-def _tables_disk_cache_off():
-    previous = os.environ.get("SCRATCH_IRIDESCENCE_CACHE_DIR")
-    os.environ["SCRATCH_IRIDESCENCE_CACHE_DIR"] = "off"
-    try:
-        yield
-    finally:
-        if previous is None:
-            del os.environ["SCRATCH_IRIDESCENCE_CACHE_DIR"]
-        else:
-            os.environ["SCRATCH_IRIDESCENCE_CACHE_DIR"] = previous
 
 
 def render_worker(blend: Path, output: Path) -> dict:
