@@ -13,7 +13,15 @@ samples per core-second; the best round counts, the machine being shared):
 * ``no-scan``, ``no-lookups``, ``one-fresnel``: the scratch BSDF with parts of its model switched off by
   patching them for that render only (wrong pictures, right costs): the search for pieces in the window,
   that search and the periodic families' lookup, and the conductor Fresnel's per-wavelength arithmetic
-  (one η, k for all four wavelengths, so Dr.Jit evaluates it once per lane).
+  (one η, k for all four wavelengths, so Dr.Jit evaluates it once per lane);
+* ``search-again``: every fold over the window's pieces searches the grid anew instead of replaying the
+  pieces that the light sample's evaluation found (``model._fold_pieces``; the same picture): a path's
+  vertex on the plate then searches three times instead of once, so the difference to ``scratched`` is
+  the price of two searches;
+* ``no-amplitude``: each piece's far-field amplitude (along factor and cross-section, the Faddeeva
+  evaluations; coherent sets: the incoherent mode sums intensities instead) replaced by zero, its sampling weights and densities kept: an upper bound of what the
+  amplitudes cost (paths that a scratch would have carried on end there, which saves their later
+  vertices too).
 
 Prints each variant's best samples per core-second and its ratio to ``scratched``, and, when the folder
 has the paper's time (``index.json`` of ``--export``), the ratio per wavelength sample against the paper.
@@ -38,7 +46,7 @@ SWAPS = {
                       '<float name="alpha" value="0.1"/></bsdf>',
     "conductor": '<bsdf type="conductor"{id}><string name="material" value="Al"/></bsdf>',
 }
-PATCHES = ("no-scan", "no-lookups", "one-fresnel")
+PATCHES = ("no-scan", "no-lookups", "one-fresnel", "search-again", "no-amplitude")
 #: Wavelengths per path here (Mitsuba's spectral variants) and per sample in the paper's renderer.
 WAVELENGTHS, PAPER_WAVELENGTHS = 4, 16
 
@@ -74,13 +82,16 @@ def load(folder: Path, swap: str | None):
 @contextlib.contextmanager
 def patched(name: str | None):
     """The scratch model with one part switched off while the scene is traced (``PATCHES``)."""
+    import drjit as dr
     import mitsuba as mi
 
     from scratch_iridescence.mitsuba_bridge.bsdf import model
+    from scratch_iridescence.mitsuba_bridge.bsdf.complexmath import Cx
     from scratch_iridescence.mitsuba_bridge.bsdf.fresnel import fresnel_conductor
 
     saved = {"for_each_segment": model.for_each_segment, "find_family": model.find_family,
-             "_reflectance": model.Model._reflectance}
+             "_reflectance": model.Model._reflectance, "_fold_pieces": model._fold_pieces,
+             "amplitude": model.amplitude}
     if name in ("no-scan", "no-lookups"):
         scan = saved["for_each_segment"]
         model.for_each_segment = lambda grid, jac, radius, state, body, active: scan(
@@ -93,11 +104,17 @@ def patched(name: str | None):
             eta, k = (texture.eval(si, active)[0] for texture in (self.eta, self.k))
             return fresnel_conductor(cos_theta, mi.Spectrum(eta), mi.Spectrum(k))
         model.Model._reflectance = reflectance
+    if name == "search-again":
+        fold = saved["_fold_pieces"]
+        model._fold_pieces = lambda grid, jac, radius, state, body, scanning, found: fold(
+            grid, jac, radius, state, body, scanning, None)
+    if name == "no-amplitude":
+        model.amplitude = lambda segment, xi_x, xi_y, k_z, sigma: Cx(dr.zeros(mi.Spectrum), dr.zeros(mi.Spectrum))
     try:
         yield
     finally:
-        model.for_each_segment, model.find_family = saved["for_each_segment"], saved["find_family"]
-        model.Model._reflectance = saved["_reflectance"]
+        for key, value in saved.items():
+            setattr(model.Model if key == "_reflectance" else model, key, value)
 
 
 def paper_rate(folder: Path) -> float | None:
