@@ -142,6 +142,8 @@ def test04_two_crossing_scratches_match_the_height_field():
     assert height_field < 0.01
 
 
+# (a set of both profiles: its kernels take ~30 s to compile on a cold cache; under the slow marker)
+@pytest.mark.slow
 def test05_reciprocal_and_invariant_under_the_uv_map():
     scratches = TWO + [ref.Scratch((-20, -3), (20, 4), 0.8, 0.15), ref.Scratch((-3, -20), (1, 20), 1.2, 0.3, ref.TRI)]
     rng = np.random.default_rng(5)
@@ -405,7 +407,9 @@ BEYOND_THE_TERMS = {  # sets where the corrections alone exceed the bound |U| <=
 }
 
 
-@pytest.mark.parametrize("name", list(BEYOND_THE_TERMS))
+# (the bunch's ten nearly parallel scratches compile the pile code: ~17 s on a cold cache, slow marker)
+@pytest.mark.parametrize("name", [pytest.param(name, marks=pytest.mark.slow) if name == "bunch" else name
+                                  for name in BEYOND_THE_TERMS])
 def test16_the_field_never_exceeds_the_height_fields_bound(name):
     """Where the truncated expansion exceeds every height field's |U| <= 2πσ² (docs/model.md §3.4; 1.5x on a
     stress set with the pair terms alone, tests/bench/bench_height_field_bound.py), the clamp caps it:
@@ -601,7 +605,9 @@ ENDED_CROSSINGS = turned_off_the_raster_axes({
 })
 
 
-@pytest.mark.parametrize("name", list(ENDED_CROSSINGS))
+# (the V-groove's case, a set of both profiles, compiles its own kernels: ~19 s on a cold cache, slow marker)
+@pytest.mark.parametrize("name", [pytest.param(name, marks=pytest.mark.slow) if name == "a V-groove ends" else name
+                                  for name in ENDED_CROSSINGS])
 def test22_a_crossing_next_to_a_grooves_end_matches_the_height_field(name):
     """Where a groove ends inside the crossing's parallelogram, the overlap ends there too: the pair's cells
     are clipped to the grooves' runs (overlap.run_ends), not to the pieces a long scratch is cut into.
