@@ -407,7 +407,8 @@ BEYOND_THE_TERMS = {  # sets where the corrections alone exceed the bound |U| <=
 }
 
 
-# (the bunch's ten nearly parallel scratches compile the pile code: ~17 s on a cold cache, slow marker)
+# (the bunch's case runs ~11 s beyond the kernels it shares with the star of nine, which compiles them when
+# run alone: under the slow marker)
 @pytest.mark.parametrize("name", [pytest.param(name, marks=pytest.mark.slow) if name == "bunch" else name
                                   for name in BEYOND_THE_TERMS])
 def test16_the_field_never_exceeds_the_height_fields_bound(name):
