@@ -19,9 +19,9 @@ samples per core-second; the best round counts, the machine being shared):
   vertex on the plate then searches three times instead of once, so the difference to ``scratched`` is
   the price of two searches;
 * ``no-amplitude``: each piece's far-field amplitude (along factor and cross-section, the Faddeeva
-  evaluations; coherent sets: the incoherent mode sums intensities instead) replaced by zero, its sampling weights and densities kept: an upper bound of what the
-  amplitudes cost (paths that a scratch would have carried on end there, which saves their later
-  vertices too).
+  evaluations; coherent sets: the incoherent mode sums intensities instead) replaced by zero, its
+  sampling weights and densities kept: an upper bound of what the amplitudes cost (paths that a scratch
+  would have carried on end there, which saves their later vertices too).
 
 Prints each variant's best samples per core-second and its ratio to ``scratched``, and, when the folder
 has the paper's time (``index.json`` of ``--export``), the ratio per wavelength sample against the paper.
