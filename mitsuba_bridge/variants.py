@@ -74,17 +74,21 @@ def _missing_backend_message(variant: str) -> str:
 def activate(requested: str = "auto") -> str:
     """Set the chosen variant and register the project's plugins for it; returns the variant.
 
+    On the CPU, first makes its kernels clear the vector registers' upper halves before calling out
+    (:func:`.llvm_target.configure`: Intel CPUs otherwise run Embree's SSE code at a penalty).
     Also finds the global tables that frozen render passes take (:func:`.freezing.calibrate`), once
     per variant and before any scene of it is loaded, when that costs a tiny kernel.
     """
     import mitsuba as mi
 
-    from . import register_plugins
+    from . import llvm_target, register_plugins
     from .freezing import calibrate
 
     variant = choose_variant(requested)
     if mi.variant() != variant:
         mi.set_variant(variant)
+    if variant.startswith("llvm"):
+        llvm_target.configure()
     register_plugins()
     calibrate()
     return variant

@@ -18,15 +18,25 @@ samples per core-second; the best round counts, the machine being shared):
   pieces that the light sample's evaluation found (``model._fold_pieces``; the same picture): a path's
   vertex on the plate then searches three times instead of once, so the difference to ``scratched`` is
   the price of two searches;
+* ``no-vzeroupper``: the scene as exported, its kernels compiled without the ``vzeroupper`` before
+  calls out of a kernel that the add-on asks LLVM for (``mitsuba_bridge/llvm_target.py``; Intel CPUs
+  with AVX-512 otherwise enter Embree's SSE code at a penalty);
 * ``no-amplitude``: each piece's far-field amplitude (along factor and cross-section, the Faddeeva
   evaluations; coherent sets: the incoherent mode sums intensities instead) replaced by zero, its
   sampling weights and densities kept: an upper bound of what the amplitudes cost (paths that a scratch
   would have carried on end there, which saves their later vertices too).
 
+``--llvm-widths 16 32`` renders every variant at each SIMD width of Dr.Jit's CPU backend (lanes per
+packet; the backend's own choice is the widest vector register, 16 with AVX-512), the scene loaded anew at
+each (Embree's packet entry point is chosen when the scene is built), through
+``mitsuba_bridge.llvm_target.configure``.  docs/bsdf.md (Performance, "vzeroupper
+before calls") has what that showed.
+
 Prints each variant's best samples per core-second and its ratio to ``scratched``, and, when the folder
 has the paper's time (``index.json`` of ``--export``), the ratio per wavelength sample against the paper.
 
     .venv/bin/python tests/bench/bench_render_costs.py [out/scenes/fig09_grating-incoherent] [--rounds 3] [--spp 64]
+        [--variants scratched diffuse ...] [--llvm-widths 16 32]
 """
 from __future__ import annotations
 
@@ -47,6 +57,8 @@ SWAPS = {
     "conductor": '<bsdf type="conductor"{id}><string name="material" value="Al"/></bsdf>',
 }
 PATCHES = ("no-scan", "no-lookups", "one-fresnel", "search-again", "no-amplitude")
+#: Variants that render the scene as exported with another code generation target.
+TARGETS = ("no-vzeroupper",)
 #: Wavelengths per path here (Mitsuba's spectral variants) and per sample in the paper's renderer.
 WAVELENGTHS, PAPER_WAVELENGTHS = 4, 16
 
@@ -130,8 +142,12 @@ def main():
     parser.add_argument("folder", nargs="?", type=Path)
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--spp", type=int, default=64)
-    parser.add_argument("--variants", nargs="*", default=["scratched", *SWAPS, *PATCHES])
+    parser.add_argument("--variants", nargs="*", default=["scratched", *SWAPS, *PATCHES, *TARGETS])
+    parser.add_argument("--llvm-widths", nargs="*", type=int, default=[],
+                        help="SIMD widths (lanes per packet: 8, 16 or 32) to render each variant at")
     args = parser.parse_args()
+    if any(width not in (4, 8, 16, 32) for width in args.llvm_widths):
+        parser.error("--llvm-widths: Embree takes packets of 4, 8, 16 or 32 rays")
     folder = args.folder or DEFAULT_FOLDER
     if not (folder / "scene.xml").is_file():  # `make bench` runs every benchmark without arguments
         print(f"no exported scene in {folder}: export it first "
@@ -143,12 +159,20 @@ def main():
 
     mi.set_variant("llvm_ad_spectral")
     from scratch_iridescence import mitsuba_bridge
+    from scratch_iridescence.mitsuba_bridge import llvm_target
     from scratch_iridescence.mitsuba_bridge.render import film_pixels
 
     mitsuba_bridge.register_plugins()
+    widths = args.llvm_widths or [None]
+    labels = [(variant, width, variant if width is None else f"{variant}@{width}")
+              for width in widths for variant in args.variants]
     best: dict[str, float] = {}
     for round_ in range(args.rounds + 1):  # round 0 compiles every variant's kernels
-        for variant in args.variants:
+        for variant, width, label in labels:
+            # as variants.activate sets it, or as asked; a changed target compiles the kernels anew
+            if not llvm_target.configure(vzeroupper=variant != "no-vzeroupper", vector_width=width):
+                raise SystemExit("this Dr.Jit exports no jit_llvm_set_target: --llvm-widths and "
+                                 "no-vzeroupper cannot be measured")
             scene = load(folder, variant if variant in SWAPS else None)
             pixels = film_pixels(scene)
             with patched(variant if variant in PATCHES else None):
@@ -158,19 +182,19 @@ def main():
                 dr.sync_thread()
                 rate = pixels * spp / (cpu_seconds() - start)
             if round_:
-                best[variant] = max(best.get(variant, 0.0), rate)
+                best[label] = max(best.get(label, 0.0), rate)
             del scene
         if round_:
-            print(f"round {round_}: " + ", ".join(f"{v} {best[v]:.3g}" for v in args.variants), flush=True)
-    reference = best.get("scratched")
+            print(f"round {round_}: " + ", ".join(f"{label} {best[label]:.3g}" for *_, label in labels), flush=True)
+    reference = best.get(labels[0][2])
     paper = paper_rate(folder)
     print(f"{folder.name}, {args.spp} spp, best of {args.rounds} rounds, samples per core-second:")
-    for variant in args.variants:
-        line = f"  {variant:15s} {best[variant]:.3g}"
+    for *_, label in labels:
+        line = f"  {label:18s} {best[label]:.3g}"
         if reference:
-            line += f"  ({best[variant] / reference:.2f}x scratched)"
+            line += f"  ({best[label] / reference:.2f}x {labels[0][2]})"
         if paper:
-            line += f"  {best[variant] / paper * WAVELENGTHS / PAPER_WAVELENGTHS:.2f}x the paper per wavelength sample"
+            line += f"  {best[label] / paper * WAVELENGTHS / PAPER_WAVELENGTHS:.2f}x the paper per wavelength sample"
         print(line)
     return 0
 
