@@ -9,9 +9,9 @@ vector registers still dirty.  Intel CPUs then run legacy-SSE code at a heavy
 penalty (AMD ones do not): Embree's dispatch over its sub-hierarchies, taken
 whenever a scene mixes triangle meshes with an analytic shape such as the
 sphere of a point light, spent 91 % of its time on one SSE comparison.  Measured
-on the Fig. 10 scene (docs/rendering.md, "vzeroupper before calls"): +28 %
-samples per core-second with the scratch BSDF, +43 % with a diffuse plate;
-scenes without such a shape unchanged; images identical bit for bit
+on the paper's scenes (docs/bsdf.md, Performance, "vzeroupper before calls"):
++17 to +28 % samples per core-second where a sphere lamp lights the scratched
+plate, scenes without such a shape unchanged, images identical bit for bit
 (``vzeroupper`` computes nothing).
 
 :func:`configure` adds LLVM's ``+vzeroupper`` tuning feature to the backend's
@@ -24,6 +24,7 @@ these symbols leaves the target as it is (:func:`configure` returns ``False``).
 from __future__ import annotations
 
 import ctypes
+import functools
 import os
 import platform
 from dataclasses import dataclass
@@ -50,8 +51,9 @@ class Target:
         return VZEROUPPER in self.features.split(",")
 
 
+@functools.lru_cache(maxsize=None)
 def _core_functions(library: str | None = None):
-    """drjit-core's target functions as ctypes callables, or ``None`` when the library lacks them."""
+    """drjit-core's target functions as ctypes callables (looked up once), or ``None`` when it lacks them."""
     if library is None:
         import drjit as dr
 

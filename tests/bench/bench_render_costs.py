@@ -144,7 +144,7 @@ def main():
     parser.add_argument("--spp", type=int, default=64)
     parser.add_argument("--variants", nargs="*", default=["scratched", *SWAPS, *PATCHES, *TARGETS])
     parser.add_argument("--llvm-widths", nargs="*", type=int, default=[],
-                        help="SIMD widths (lanes per packet: 8, 16 or 32) to render each variant at")
+                        help="SIMD widths (lanes per packet: 4, 8, 16 or 32) to render each variant at")
     args = parser.parse_args()
     if any(width not in (4, 8, 16, 32) for width in args.llvm_widths):
         parser.error("--llvm-widths: Embree takes packets of 4, 8, 16 or 32 rays")
