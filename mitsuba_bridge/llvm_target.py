@@ -89,8 +89,7 @@ def configure(*, vzeroupper: bool = True, vector_width: int | None = None, libra
     target compiles anew).  Changes nothing when the target already is that one, so calling it at
     every render is free.  Returns whether the target now is the requested one.
     """
-    functions = _core_functions(library)
-    current = target(library) if functions is not None else None
+    current = target(library)  # None also when the library lacks the functions
     if current is None:
         return False
     features = [feature for feature in current.features.split(",") if feature and feature != VZEROUPPER]
@@ -98,5 +97,5 @@ def configure(*, vzeroupper: bool = True, vector_width: int | None = None, libra
         features.append(VZEROUPPER)  # an unknown feature elsewhere: LLVM would warn at every kernel
     wanted = Target(current.cpu, ",".join(features), vector_width or current.vector_width)
     if wanted != current:
-        functions["set"](wanted.cpu.encode(), wanted.features.encode(), wanted.vector_width)
+        _core_functions(library)["set"](wanted.cpu.encode(), wanted.features.encode(), wanted.vector_width)
     return target(library) == wanted
