@@ -16,7 +16,8 @@ import drjit as dr
 from .complexmath import Cx, expi
 from .faddeeva import faddeeva
 
-__all__ = ["mirror_lobe", "window_integral", "piece_and_run_integrals", "END_CLAMP_SIGMAS", "END_NEGLIGIBLE_SIGMAS"]
+__all__ = ["mirror_lobe", "window_integral", "piece_and_run_integrals", "unphased_end_term", "line_term",
+           "clamp_to_window", "END_CLAMP_SIGMAS", "END_NEGLIGIBLE_SIGMAS"]
 
 #: Segment end positions are clamped to ±8σ (the window is e^-32 there).
 END_CLAMP_SIGMAS = 8.0
@@ -33,18 +34,43 @@ def mirror_lobe(xi2, sigma):
     return (2.0 * math.pi) * sigma2 * dr.exp((-2.0 * math.pi ** 2) * sigma2 * xi2)
 
 
+def _end_faddeeva(t, nu, sigma):
+    """``(s, w(s b/(√2σ) + i|t|/(√2σ)))`` of an end at ``t``, ``s = -1`` for t >= 0, else +1."""
+    sign = dr.select(t >= 0.0, -1.0, 1.0)
+    inv_scale = dr.rcp(math.sqrt(2.0) * sigma)
+    b = (2.0 * math.pi) * nu * (sigma * sigma)
+    return sign, faddeeva(Cx(sign * b * inv_scale, dr.abs(t) * inv_scale))
+
+
 def _end_term(t, nu, sigma):
     """``s g(t) w(s b/(√2σ) + i|t|/(√2σ))`` with ``s = -1`` for t >= 0, else +1.
 
     With it ``Φ(t) = σ√(π/2) [end_term(t) + 2 e^{-2π²σ²ν²} H(t)]`` for both signs
     of ``t`` (H: unit step), which is the pair of Faddeeva forms of docs/model.md §3.2.
     """
-    sign = dr.select(t >= 0.0, -1.0, 1.0)
-    inv_scale = dr.rcp(math.sqrt(2.0) * sigma)
-    b = (2.0 * math.pi) * nu * (sigma * sigma)
-    w = faddeeva(Cx(sign * b * inv_scale, dr.abs(t) * inv_scale))
+    sign, w = _end_faddeeva(t, nu, sigma)
     g = expi((-2.0 * math.pi) * nu * t) * dr.exp(-0.5 * dr.square(t / sigma))
     return g * w * sign
+
+
+def unphased_end_term(t, nu, sigma):
+    """The end term of :func:`window_integral` at ``t`` without its phase ``e^{-2πiνt}``, in units of
+    ``σ√(π/2)``: ``s e^{-t²/2σ²} w(...)``.  For callers that share one phase between the ends at one
+    position at several frequencies (:func:`.profiles.triangular`); ``t`` already clamped
+    (:func:`clamp_to_window`)."""
+    sign, w = _end_faddeeva(t, nu, sigma)
+    return w * (sign * dr.exp(-0.5 * dr.square(t / sigma)))
+
+
+def line_term(nu, sigma):
+    """``(Φ(∞; ν) - Φ(-∞; ν)) / (σ√(π/2)) = 2 e^{-2π²σ²ν²}``: the step of Φ at the foot point."""
+    return 2.0 * dr.exp((-2.0 * math.pi ** 2) * (sigma * sigma) * nu * nu)
+
+
+def clamp_to_window(t, sigma):
+    """``t`` clamped to ±8σ, where the window is e^-32 (as :func:`window_integral` clamps its ends)."""
+    limit = END_CLAMP_SIGMAS * sigma
+    return dr.clip(t, -limit, limit)
 
 
 def _skippable_end_term(t, nu, sigma, wanted=True):
