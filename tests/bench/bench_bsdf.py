@@ -148,11 +148,14 @@ def main():
         print(f"  scratch.sample vs conductor.sample     {conductor[1] / one[1]:5.2f}x")
         print(f"  scratch.eval   vs roughconductor.eval  {rough[0] / one[0]:5.2f}x")
         print(f"  scratch.sample vs roughconductor.sample {rough[1] / one[1]:4.2f}x")
-    counts = [c for c in args.segments if c > 0]
-    if len(counts) >= 2:
-        per = [(1 / results[c][0] - 1 / results.get(0, results[c])[0]) / c * 1e9 for c in counts]
+    counts = sorted(c for c in args.segments if c > 0)
+    # each count against the next lower one measured (0 segments where it was): what one more segment
+    # in the window adds
+    pairs = [(b, c) for b, c in zip([0 if 0 in results else None, *counts[:-1]], counts) if b is not None]
+    if pairs:
+        per = [(1 / results[c][0] - 1 / results[b][0]) / (c - b) * 1e9 for b, c in pairs]
         print("eval time per segment [ns per lane]: "
-              + ", ".join(f"{c}: {p:.1f}" for c, p in zip(counts, per)) + " (linear: roughly constant)")
+              + ", ".join(f"{b}→{c}: {p:.1f}" for (b, c), p in zip(pairs, per)) + " (linear: roughly constant)")
 
 
 def dense_sets(args, rng):
