@@ -11,7 +11,8 @@ from scipy.special import wofz
 
 from scratch_iridescence.mitsuba_bridge.bsdf import fresnel, profiles
 from scratch_iridescence.mitsuba_bridge.bsdf.complexmath import Cx
-from scratch_iridescence.mitsuba_bridge.bsdf.faddeeva import DEFAULT_TERMS, faddeeva, weideman_coefficients
+from scratch_iridescence.mitsuba_bridge.bsdf.faddeeva import (DEFAULT_TERMS, faddeeva, real_polynomial_at,
+                                                                weideman_coefficients)
 from scratch_iridescence.mitsuba_bridge.bsdf.window import window_integral
 
 # docs/model.md §3.2 prints these (N = 16, Horner order).
@@ -54,6 +55,19 @@ def test03_faddeeva_is_finite_for_extreme_arguments():
     assert np.all(np.isfinite(w))
     assert np.all(np.abs(w) <= 1.0 + 1e-5)  # |w| <= 1 in the upper half plane
 
+
+@pytest.mark.parametrize("degree", [2, 3, 7, 12, 15])
+def test03b_real_polynomial_at_a_complex_point_matches_numpy(degree):
+    """The Faddeeva polynomial's real recurrence (docs/model.md §3.2) against numpy's complex Horner,
+    in the closed unit disk (where the Faddeeva function evaluates it), unit circle included."""
+    rng = np.random.default_rng(30 + degree)
+    radius = np.concatenate([np.sqrt(rng.uniform(0.0, 1.0, 2000)), np.ones(200)])
+    z = (radius * np.exp(1j * rng.uniform(-np.pi, np.pi, radius.size))).astype(np.complex64)
+    coefficients = rng.normal(0.0, 1.0, degree + 1)
+    got = numpy_complex(real_polynomial_at(tuple(coefficients), Cx(floats(z.real), floats(z.imag))))
+    expected = np.polyval(coefficients, z.astype(np.complex128))
+    # float32 rounding of a degree-15 sum of terms at most Σ|a_k| in size
+    np.testing.assert_allclose(got, expected, rtol=0, atol=5e-7 * degree * np.abs(coefficients).sum())
 
 def window_integral_by_quadrature(t0, t1, nu, sigma):
     def part(f):
