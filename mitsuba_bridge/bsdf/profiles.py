@@ -72,14 +72,13 @@ def triangular(a_perp, width, nu, kappa, sigma, coherent: bool = True) -> Cx:
         outer_right = outer_right - unphased_end_term(right, nu, sigma)
         outer_left = outer_left - unphased_end_term(left, nu, sigma)
     result = phase_apex * at_apex + phase_right * outer_right - phase_left * outer_left
-    # the step at the foot point x0 (relative offset 0): inside the groove, in the facet over x0
-    over_left = apex >= 0.0
+    # the step at the foot point x0 (relative offset 0) where x0 lies in the groove: the facet over it
+    # (the left one where a⊥ >= 0) at the depth phase there
     inside = (left < 0.0) & (right >= 0.0)
-    step = expi(kappa * (1.0 - dr.abs(a_perp) * (2.0 / width))) * line_term(
-        dr.select(over_left, below, above), sigma)
+    step = expi(kappa * (1.0 - dr.abs(a_perp) * (2.0 / width))) * line_term(dr.select(apex >= 0.0, below, above), sigma)
     if coherent:
         step = step - line_term(nu, sigma)
-    result = result + Cx(dr.select(inside, step.re, 0.0), dr.select(inside, step.im, 0.0))
+    result = result + step.select(inside, Cx(0.0, 0.0))
     return result * (_SQRT_HALF_PI * sigma)
 
 

@@ -97,11 +97,9 @@ def window_integral(t0, t1, nu, sigma, skip_far_ends: bool = True):
     whole SIMD packets (worth its branch for segment ends, not for the edges of
     a scratch's cross-section, which are always near).
     """
-    limit = END_CLAMP_SIGMAS * sigma
-    t0 = dr.clip(t0, -limit, limit)
-    t1 = dr.clip(t1, -limit, limit)
+    t0, t1 = clamp_to_window(t0, sigma), clamp_to_window(t1, sigma)
     steps = dr.select(t1 >= 0.0, 1.0, 0.0) - dr.select(t0 >= 0.0, 1.0, 0.0)
-    line = 2.0 * dr.exp((-2.0 * math.pi ** 2) * (sigma * sigma) * nu * nu) * steps
+    line = line_term(nu, sigma) * steps
     end_term = _skippable_end_term if skip_far_ends else _end_term
     result = end_term(t1, nu, sigma) - end_term(t0, nu, sigma) + line
     return result * (_SQRT_HALF_PI * sigma)
@@ -112,15 +110,14 @@ def piece_and_run_integrals(t0, t1, before, after, nu, sigma):
     along the straight run it belongs to, which goes on ``before`` its start and ``after`` its end
     (``>= 0``; 0: the piece ends there).  The run shares the piece's end terms where it ends with it,
     and far ends are skipped as there, so a run costs little more than its piece."""
-    limit = END_CLAMP_SIGMAS * sigma
-    r0, r1 = dr.clip(t0 - before, -limit, limit), dr.clip(t1 + after, -limit, limit)
-    t0, t1 = dr.clip(t0, -limit, limit), dr.clip(t1, -limit, limit)
+    r0, r1 = clamp_to_window(t0 - before, sigma), clamp_to_window(t1 + after, sigma)
+    t0, t1 = clamp_to_window(t0, sigma), clamp_to_window(t1, sigma)
     e0, e1 = _skippable_end_term(t0, nu, sigma), _skippable_end_term(t1, nu, sigma)
     moved0, moved1 = r0 != t0, r1 != t1
     f0 = _skippable_end_term(r0, nu, sigma, moved0)
     f1 = _skippable_end_term(r1, nu, sigma, moved1)
     f0, f1 = f0.select(moved0, e0), f1.select(moved1, e1)
-    full = 2.0 * dr.exp((-2.0 * math.pi ** 2) * (sigma * sigma) * nu * nu)
+    full = line_term(nu, sigma)
     step = lambda t: dr.select(t >= 0.0, 1.0, 0.0)
     piece = e1 - e0 + full * (step(t1) - step(t0))
     run = f1 - f0 + full * (step(r1) - step(r0))
