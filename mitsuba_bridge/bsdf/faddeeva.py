@@ -76,7 +76,7 @@ def real_polynomial_at(coefficients, z: Cx) -> Cx:
     """
     r = 2.0 * z.re
     s = -z.abs2()
-    b2, b1 = None, coefficients[0]  # b_{k+2}, b_{k+1}
-    for c in coefficients[1:-1]:
-        b2, b1 = b1, dr.fma(r, b1, c) if b2 is None else dr.fma(r, b1, dr.fma(s, b2, c))
+    b2, b1 = coefficients[0], dr.fma(r, coefficients[0], coefficients[1])  # b_{k+2}, b_{k+1}
+    for c in coefficients[2:-1]:
+        b2, b1 = b1, dr.fma(r, b1, dr.fma(s, b2, c))
     return Cx(dr.fma(b1, z.re, dr.fma(s, b2, coefficients[-1])), b1 * z.im)
