@@ -69,6 +69,7 @@ def test03b_real_polynomial_at_a_complex_point_matches_numpy(degree):
     # float32 rounding of a degree-15 sum of terms at most Σ|a_k| in size
     np.testing.assert_allclose(got, expected, rtol=0, atol=5e-7 * degree * np.abs(coefficients).sum())
 
+
 def window_integral_by_quadrature(t0, t1, nu, sigma):
     def part(f):
         return integrate.quad(lambda t: np.exp(-0.5 * (t / sigma) ** 2) * f(2 * np.pi * nu * t), t0, t1,
