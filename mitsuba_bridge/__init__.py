@@ -18,7 +18,7 @@ if "." not in __name__:
     raise ImportError(f"import the bridge as 'scratch_iridescence.mitsuba_bridge', not '{__name__}' "
                       "(one name, one copy of every class; docs/architecture.md)")
 
-from . import llvm_library  # noqa: E402  (after the name check: nothing to configure for a refused copy)
+from .device import llvm_library  # noqa: E402  (after the name check: nothing to configure for a refused copy)
 
 llvm_library.configure()
 
@@ -33,7 +33,7 @@ def register_plugins() -> None:
     Call after ``mi.set_variant(...)``; calling again (or after switching
     variants) is harmless.
     """
-    from . import translucent
+    from .bsdf import translucent
     from .bsdf import register  # Mitsuba is imported here, not at package import
 
     register()

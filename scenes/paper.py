@@ -37,7 +37,7 @@ import time
 from pathlib import Path
 from unittest import mock
 
-from ..mitsuba_bridge.render import TRACED_NOTE_PREFIX
+from ..mitsuba_bridge.render.passes import TRACED_NOTE_PREFIX
 
 __all__ = ["FIGURE_MODULES", "figures", "main"]
 
@@ -131,7 +131,7 @@ def render_worker(blend: Path, output: Path) -> dict:
     wall, cpu = time.perf_counter(), _cpu_seconds()
     bpy.ops.render.render(write_still=True)
     wall, cpu = time.perf_counter() - wall, _cpu_seconds() - cpu
-    from ..mitsuba_bridge.bsdf import disk_cache
+    from ..mitsuba_bridge.bsdf.tables import disk_cache
     tables = disk_cache.statistics()  # whether the render read its scratch tables from an earlier one's file
     peak = _peak_mb()
     # RGB (no alpha channel) at the strongest compression: the gallery commits these files.
@@ -159,9 +159,9 @@ def reference_worker() -> dict:
     import drjit as dr
     import mitsuba as mi
 
-    from ..mitsuba_bridge import variants
+    from ..mitsuba_bridge.render.activation import activate
 
-    variant = variants.activate("llvm_ad_spectral")
+    variant = activate("llvm_ad_spectral")
     description = mi.cornell_box()
     description["sensor"]["film"].update(width=REFERENCE_RESOLUTION, height=REFERENCE_RESOLUTION)
     scene = mi.load_dict(description)
@@ -287,7 +287,7 @@ def main(argv=None) -> int:
             (output / f"{record['name']}.json").write_text(json.dumps(record, indent=1))
     validation = None
     if not (args.no_validation or args.pages_only):
-        from ..mitsuba_bridge import validation as numerics
+        from ..mitsuba_bridge.validation import fig15 as numerics
 
         print("Numerical validation (supplement Fig. 15)", flush=True)
         validation = numerics.run(output / "validation")

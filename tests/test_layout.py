@@ -55,10 +55,10 @@ try:
 except ImportError as error:
     print('refused:', error)
 import mitsuba as mi
-from scratch_iridescence.mitsuba_bridge import variants
+from scratch_iridescence.mitsuba_bridge.render.activation import activate
 from scratch_iridescence.mitsuba_bridge.bsdf import PLUGIN_NAME, plugin
-variants.activate('llvm_ad_spectral')
-variants.activate('llvm_ad_spectral')
+activate('llvm_ad_spectral')
+activate('llvm_ad_spectral')
 bsdf = mi.load_dict({'type': PLUGIN_NAME})
 print('class:', type(bsdf) is plugin.plugin_class())
 print('copies:', sorted(m for m in sys.modules if m.split('.')[0] == 'mitsuba_bridge'))

@@ -25,7 +25,9 @@ class SCRATCH_OT_export_mitsuba(bpy.types.Operator):
         return {"RUNNING_MODAL"}
 
     def execute(self, context):
-        from ...mitsuba_bridge import export as bridge_export, variants
+        from ...mitsuba_bridge.device import variants
+        from ...mitsuba_bridge.render.activation import activate
+        from ...mitsuba_bridge.folder import export as bridge_export
 
         if not self.directory:
             self.report({"ERROR"}, "choose a folder to export into")
@@ -35,7 +37,7 @@ class SCRATCH_OT_export_mitsuba(bpy.types.Operator):
             depsgraph = context.evaluated_depsgraph_get()
             description = gather_scene(depsgraph)
             settings = gather_settings(context.scene)
-            variants.activate(settings.variant)
+            activate(settings.variant)
             scene_file = bridge_export.export_folder(description, settings, folder)
         except (GatherError, variants.VariantError, ImportError, OSError) as error:
             self.report({"ERROR"}, f"Export Mitsuba Scene: {error}")

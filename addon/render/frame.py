@@ -47,14 +47,16 @@ def _bridge():
     import drjit  # noqa: F401  (imported here to report a missing wheel by name)
     import mitsuba  # noqa: F401
 
-    from ...mitsuba_bridge import builder, render, variants
-    return builder, render, variants
+    from ...mitsuba_bridge import builder
+    from ...mitsuba_bridge.device import variants
+    from ...mitsuba_bridge.render import activation, passes
+    return builder, passes, variants, activation
 
 
 def render_frame(engine, depsgraph) -> None:
     """Render the frame of ``depsgraph`` into ``engine``'s result (the body of ``RenderEngine.render``)."""
     try:
-        builder, passes, variants = _bridge()
+        builder, passes, variants, activation = _bridge()
     except ImportError as error:
         _fail(engine, MITSUBA_MISSING.format(error=error))
         return
@@ -62,7 +64,7 @@ def render_frame(engine, depsgraph) -> None:
     try:
         settings = gather_settings(scene)
         engine.update_stats("", "Mitsuba | Choosing device")
-        variant = variants.activate(settings.variant)
+        variant = activation.activate(settings.variant)
         engine.update_stats("", "Mitsuba | Gathering scene")
         description = gather_scene(depsgraph, camera=getattr(engine, "camera_override", None))
     except (GatherError, variants.VariantError) as error:

@@ -3,8 +3,9 @@
 :func:`classify` is a pure function of the depsgraph and the :class:`SyncState`
 of the last sync (no Mitsuba, no drawing), so tests drive it with real ``bpy``
 edits from a ``depsgraph_update_post`` handler, exactly where Blender calls the
-engine's ``view_update``.  Each change becomes the cheapest :class:`Update`
-that :class:`mitsuba_bridge.interactive.Session` can apply:
+engine's ``view_update``.  Each change becomes the cheapest
+:class:`~mitsuba_bridge.render.session.Update` that
+:class:`~mitsuba_bridge.render.session.Session` can apply (its :class:`~mitsuba_bridge.render.session.Change`):
 
 =====================================  ====================================================
 edit                                   update
@@ -32,6 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ...mitsuba_bridge.render.session import Change, Update
 from ...mitsuba_bridge.scratch import ScratchFormatError, ScratchSet
 from ..storage import has_scratches, read_scratches, scratch_token
 from .gather import GEOMETRY_TYPES, Warnings, gather_settings, scratched_metal
@@ -39,15 +41,7 @@ from .gather.lights import gather_light
 from .gather.materials import gather_material
 from .gather.world import gather_world
 
-__all__ = ["Update", "SyncState", "snapshot", "classify", "same", "settings_key"]
-
-
-@dataclass(frozen=True)
-class Update:
-    """One session call: ``kind`` names ``Session.set_<kind>`` (``build``: a new session), ``args`` its arguments."""
-
-    kind: str
-    args: tuple = ()
+__all__ = ["SyncState", "snapshot", "classify", "same", "settings_key"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -159,10 +153,10 @@ def _shapes_of(state: SyncState, name: str) -> list[str]:
 def classify(depsgraph, state: SyncState) -> list[Update]:
     """The session updates for ``depsgraph.updates`` since ``state`` (which is brought up to date).
 
-    Returns ``[Update("build")]`` when an edit has no cheaper form: the caller
+    Returns ``[Update(Change.BUILD)]`` when an edit has no cheaper form: the caller
     then gathers the scene and calls :func:`snapshot` afresh.
     """
-    build = [Update("build")]
+    build = [Update(Change.BUILD)]
     if settings_key(depsgraph.scene) != state.settings:
         return build
     objects, lights, instanced = _renderable(depsgraph)
@@ -196,21 +190,21 @@ def classify(depsgraph, state: SyncState) -> list[Update]:
             return build
         for index, (old, new) in enumerate(zip(state.lights, new_lights)):
             if not same(old, new):
-                updates.append(Update("light", (index, new)))
+                updates.append(Update(Change.LIGHT, (index, new)))
         state.lights = new_lights
     if world_changed:
         world = gather_world(depsgraph.scene.world, warnings)
         if (world is None) != (state.world is None):
             return build
         if not same(world, state.world):
-            updates.append(Update("world", (world,)))
+            updates.append(Update(Change.WORLD, (world,)))
             state.world = world
     for name in sorted(materials_changed):
         key = f"material:{name}"
         if key in state.materials:
             material = gather_material(bpy.data.materials[name], warnings)
             if not same(material, state.materials[key]):
-                updates.append(Update("material", (key, material)))
+                updates.append(Update(Change.MATERIAL, (key, material)))
                 state.materials[key] = material
     state.warnings = list(warnings.as_tuple())
     return updates
@@ -235,17 +229,17 @@ def _object_updates(obj, geometry_flagged: bool, scene, state: SyncState):
                 metal = dataclasses.replace(metal, scratches=read_scratches(obj.original))
             except ScratchFormatError:
                 return None  # the build path reports it
-            updates.append(Update("scratches", (key, metal.scratches)))
+            updates.append(Update(Change.SCRATCHES, (key, metal.scratches)))
         has_uvs = obj.type == "MESH" and len(obj.data.uv_layers) > 0
         settings = scratched_metal(obj.original, scene, has_uvs, Warnings())
         if not same(dataclasses.replace(settings, scratches=metal.scratches), metal):
             metal = dataclasses.replace(settings, scratches=metal.scratches)
-            updates.append(Update("material", (key, metal)))
+            updates.append(Update(Change.MATERIAL, (key, metal)))
         state.materials[key] = metal
     if not np.array_equal(new.matrix, old.matrix):
         shapes = _shapes_of(state, obj.name)
         if not shapes or new.shared:
             return None
-        updates += [Update("transform", (shape, new.matrix)) for shape in shapes]
+        updates += [Update(Change.TRANSFORM, (shape, new.matrix)) for shape in shapes]
     state.objects[obj.name] = new
     return updates

@@ -1,10 +1,10 @@
 """The Rendered viewport: a worker thread owns the Mitsuba session, Blender's main thread only posts and draws.
 
 Main thread (``view_update``, ``view_draw``): reads the depsgraph and the 3D
-view, turns what changed into :class:`~.sync.Update` records, posts them and
+view, turns what changed into :class:`~mitsuba_bridge.render.session.Update` records, posts them and
 draws the newest image.  It never waits for Mitsuba: posting takes a lock
 held only for list swaps.  Worker thread: applies the posted updates to its
-:class:`mitsuba_bridge.interactive.Session` between passes (a pending full
+:class:`mitsuba_bridge.render.session.Session` between passes (a pending full
 build drops the updates queued before it; only the last camera counts) and
 renders one pass (on the CPU one strip of a pass) at a time until the session
 has its samples, then sleeps until the next update; it posts an image when a
@@ -28,6 +28,7 @@ from collections import deque
 
 import numpy as np
 
+from ...mitsuba_bridge.render.session import Change, Session, Update
 from ...mitsuba_bridge.scene import Film
 from . import sync
 from .frame import MITSUBA_MISSING, combined_rect
@@ -46,11 +47,12 @@ LINGER_SECONDS = 0.05
 
 def coalesce(updates: list) -> list:
     """The updates worth applying, in order: nothing before the last build, only the last camera and film."""
-    builds = [i for i, update in enumerate(updates) if update.kind == "build"]
+    builds = [i for i, update in enumerate(updates) if update.change is Change.BUILD]
     if builds:
         updates = updates[builds[-1]:]
-    last = {update.kind: i for i, update in enumerate(updates) if update.kind in ("camera", "film")}
-    return [u for i, u in enumerate(updates) if u.kind not in ("camera", "film") or last[u.kind] == i]
+    views = (Change.CAMERA, Change.FILM)
+    last = {update.change: i for i, update in enumerate(updates) if update.change in views}
+    return [u for i, u in enumerate(updates) if u.change not in views or last[u.change] == i]
 
 
 class ViewportRender:
@@ -96,7 +98,7 @@ class ViewportRender:
             view = self._region_view(context, depsgraph.scene)
             failed = self.latest()[3] is not None  # a failed session starts again from a full build
             updates = [] if self.state is None or failed else sync.classify(depsgraph, self.state)
-            if self.state is None or failed or any(update.kind == "build" for update in updates):
+            if self.state is None or failed or any(update.change is Change.BUILD for update in updates):
                 updates = [self._build(depsgraph, view)]
             self.post(updates)
         except Exception as error:  # never let a sync error reach Blender as a crash
@@ -113,7 +115,7 @@ class ViewportRender:
         self.state = sync.snapshot(depsgraph, description)
         self._view = view
         render = scene.scratch_iridescence
-        return sync.Update("build", (description, gather_settings(scene), int(render.viewport_samples),
+        return Update(Change.BUILD, (description, gather_settings(scene), int(render.viewport_samples),
                                      int(render.viewport_start_divisor), bool(render.viewport_freeze)))
 
     @staticmethod
@@ -142,9 +144,9 @@ class ViewportRender:
         old_camera, old_film = self._view
         updates = []
         if not sync.same(film, old_film):
-            updates.append(sync.Update("film", (film,)))
+            updates.append(Update(Change.FILM, (film,)))
         if not sync.same(camera, old_camera):
-            updates.append(sync.Update("camera", (camera,)))
+            updates.append(Update(Change.CAMERA, (camera,)))
         self._view = view
         return updates
 
@@ -267,18 +269,14 @@ class ViewportRender:
     @staticmethod
     def _apply(session, updates):
         for update in updates:
-            if update.kind == "build":
-                from ...mitsuba_bridge import interactive, variants
-
+            if update.change is Change.BUILD:
                 description, settings, samples, divisor, freeze = update.args
                 if session is not None:
                     session.close()
                     session = None
-                variants.activate(settings.variant)
-                session = interactive.Session(description, settings, samples=samples, start_divisor=divisor,
-                                              freeze=freeze)
+                session = Session(description, settings, samples=samples, start_divisor=divisor, freeze=freeze)
             elif session is not None:
-                getattr(session, "set_" + update.kind)(*update.args)
+                session.apply(update)
         return session
 
 

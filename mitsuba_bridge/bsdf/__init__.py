@@ -119,13 +119,20 @@ def scratch_parameters(scratches) -> dict:
     they carry the BSDF's prefix, e.g. ``plate.bsdf.scratch_uv``.  See
     :func:`update_scratches`.
     """
-    from .memory import to_tensors
+    from .tensors import to_tensors
 
     return to_tensors(scratches)
 
 
 def update_scratches(params, scratches, prefix: str | None = None) -> None:
-    """Swap the scratch set of a loaded scene in place: assign and ``params.update()``.
+    """Swap the scratch set of a loaded scene's BSDF in place.
+
+    The set is handed to the BSDF as it is (no copy, no second validation: a
+    :class:`~..scratch.ScratchSet` is valid by construction); its tables are
+    extended where the set only appends scratches (a pen stroke, :mod:`.tables.incremental`)
+    and its traversed ``scratch_*`` parameters then hold the new set.  Assigning
+    :func:`scratch_parameters` through ``params`` and ``params.update()`` does the
+    same, at the cost of reading the set back from the tensors.
 
     Parameters
     ----------
@@ -136,16 +143,21 @@ def update_scratches(params, scratches, prefix: str | None = None) -> None:
         The BSDF's key prefix (``"plate.bsdf."``); by default the one
         ``scratch_diffraction`` BSDF found in ``params`` (an error if there are several).
     """
-    values = scratch_parameters(scratches)
+    key = _FIRST_KEY
     if prefix is None:
-        found = sorted(key[: -len("scratch_uv")] for key in params.keys() if key.endswith("scratch_uv"))
+        found = sorted(name[: -len(key)] for name in params.keys() if name.endswith(key))
         if len(found) != 1:
             raise ValueError(f"expected one {PLUGIN_NAME} BSDF in the parameters, found {len(found)}; "
                              "pass prefix=")
         prefix = found[0]
-    for key, value in values.items():
-        params[prefix + key] = value
-    params.update()
+    if prefix + key not in params:
+        raise KeyError(f"no {PLUGIN_NAME} BSDF under {prefix!r} in the parameters")
+    bsdf = params.properties[prefix + key][2]  # the plugin object that traversed the key
+    bsdf.set_scratch_set(scratches)
+
+
+#: A traversed key every scratch BSDF has: finds the BSDFs in a scene's parameters.
+_FIRST_KEY = "scratch_uv"
 
 
 def _spectrum(value):

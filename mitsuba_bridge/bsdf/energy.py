@@ -25,7 +25,7 @@ import drjit as dr
 import mitsuba as mi
 
 from . import sampling
-from .segment import SegmentGeometry, cross_section
+from .maths.segment import SegmentGeometry, cross_section
 
 __all__ = ["albedo_excess", "GAUSSIAN_NODES", "CAUCHY_NODES"]
 

@@ -150,7 +150,7 @@ def _regular(texture):
     import mitsuba as mi
     import numpy as np
 
-    from .references import aligned_array
+    from .tables.references import aligned_array
 
     grid = _wavelength_grid_nm(texture)
     si = dr.zeros(mi.SurfaceInteraction3f, len(grid))

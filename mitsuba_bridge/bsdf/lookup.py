@@ -4,7 +4,7 @@
 cells of :mod:`.tables` that the window's UV bounding box touches, cell by
 cell, and over each cell's references.  Each cell's references are sorted by
 their offset along the cell's normal and grouped into **offset buckets** of a
-few references each (:func:`offset_buckets`, built when the tables are
+few references each (:func:`.tables.scan.offset_buckets`, built when the tables are
 uploaded): a query jumps to the bucket of the lowest offset that can reach its
 window and scans until the offsets pass the highest, so dense parallel tracks
 cost about the pieces inside the window.  A referenced piece is handed to the
@@ -24,21 +24,15 @@ from typing import Callable
 
 import drjit as dr
 import mitsuba as mi
-import numpy as np
 
-from .periodic import periodic_families
-from .segment import SegmentGeometry
-from .references import aligned_array
-from .tables import CELL_DILATION, GridTables, aligned, empty_aligned
+from .maths.segment import SegmentGeometry
+from .tables.grid import CELL_DILATION, GridTables
+from .tables.references import aligned_array
+from .tables.scan import BUCKET_REFERENCES, ScanArrays, profiles_of, relative_continuation
 
-__all__ = ["Grid", "ScanArrays", "LocalJacobian", "offset_buckets", "for_each_segment", "replay_pieces", "for_each_crossing", "jacobian",
+__all__ = ["Grid", "LocalJacobian", "for_each_segment", "replay_pieces", "for_each_crossing", "jacobian",
            "segment_at"]
 
-#: References per offset bucket (a query scans half a bucket below its window on average).
-BUCKET_REFERENCES = 4
-#: Sets with more references per occupied cell than this scan from offset buckets (a Python choice:
-#: two kernels at most).  The Fig. 10 and Fig. 7(b) plates hold 2.5 and 6.4, the grating 270, the CD 480.
-BUCKETED_ABOVE = 4 * BUCKET_REFERENCES
 #: Padding (cells) of the offset interval a cell's scan covers, against float32 rounding: the
 #: offsets are float32 values of at most ~1.5 cells, x0's offset carries the rounding of its cell
 #: coordinate (the tables' margin less their dilation covers that, relative 1e-6 of the UV extent).
@@ -126,105 +120,8 @@ class Grid:
             cell_size=dr.opaque(mi.Float, tables.cell_size),
             family_count=scan.family_count,
             kink_count=scan.kink_count,
-            continuation=aligned_array(mi.Float, _relative_continuation(tables).ravel()) if continuation else None,
-            triangular=_profiles(tables))
-
-
-@dataclass(frozen=True, eq=False)
-class ScanArrays:
-    """What :meth:`Grid.upload` builds on the CPU besides :class:`.tables.GridTables` (numpy): the offset
-    buckets and the periodic families, the costly part of an upload (the grating's families: 0.2 s)."""
-
-    bucketed: bool  #: :attr:`Grid.bucketed`
-    scan_frames: np.ndarray  #: (cells, 4) float32
-    cell_bucket: np.ndarray  #: uint32
-    bucket_start: np.ndarray  #: uint32
-    family_frames: np.ndarray | None = None  #: :attr:`.periodic.PeriodicTables.frames`, or None
-    family_count: int = 0
-    kink_count: int = 0
-
-    @classmethod
-    def of(cls, tables: GridTables, periodic: bool = True) -> "ScanArrays":
-        """Built from ``tables``; ``periodic``: with the periodic families (bucketed sets only)."""
-        bucketed = references_per_occupied_cell(tables.cell_start) > BUCKETED_ABOVE
-        if bucketed:
-            scan_frames, cell_bucket, bucket_start = offset_buckets(tables.cell_start, tables.offsets,
-                                                                    tables.cell_frames)
-        else:  # the sparse scan reads the normals only, the first two columns of the tables' own frames
-            scan_frames = tables.cell_frames  # (no buckets: their build costs ~7 % of the tables' own)
-            cell_bucket = bucket_start = aligned(np.zeros(2, np.uint32))
-        families = periodic_families(tables.cell_start, tables.references, tables.segments, tables.cell_frames,
-                                     tables.origin, tables.cell_size, tables.shape,
-                                     tables.continuation) if bucketed and periodic else None
-        if families is None:
-            return cls(bool(bucketed), scan_frames, cell_bucket, bucket_start)
-        return cls(bool(bucketed), scan_frames, cell_bucket, bucket_start, families.frames, int(families.families),
-                   int(families.kinks))
-
-
-def _profiles(tables: GridTables):
-    """:attr:`Grid.triangular`: True / False where every piece / no piece is a V-groove, else None."""
-    v_grooves = tables.segments[:tables.piece_count, 7] < 0.0
-    return None if v_grooves.any() and not v_grooves.all() else bool(v_grooves.any())
-
-
-def _relative_continuation(tables: GridTables) -> np.ndarray:
-    """``tables.continuation`` in units of each piece's own UV length (the kernel knows that in µm)."""
-    if tables.continuation is None or tables.piece_count == 0:  # (one dummy row: see tables._empty_tables)
-        return aligned(np.zeros((max(tables.piece_count, 1), 2), np.float32))
-    rows = tables.segments[:tables.piece_count]
-    length = np.hypot(rows[:, 4].astype(np.float64), rows[:, 5].astype(np.float64))
-    ratio = tables.continuation[:tables.piece_count] / np.where(length > 0.0, length, 1.0)[:, None]
-    return aligned(ratio.astype(np.float32))
-
-
-def references_per_occupied_cell(cell_start) -> float:
-    """Mean number of references of the cells that hold any."""
-    counts = np.diff(cell_start.astype(np.int64))
-    occupied = np.count_nonzero(counts)
-    return float(counts.sum()) / occupied if occupied else 0.0
-
-
-def offset_buckets(cell_start, offsets, cell_frames, per_bucket: int = BUCKET_REFERENCES):
-    """Each cell's references cut into buckets of equal offset width (numpy, at upload).
-
-    Returns ``(scan_frames, cell_bucket, bucket_start)``: per cell its normal
-    (u, v), its lowest offset plus its largest offset spread, and its buckets
-    per offset unit (``scale``, float32 as the kernel reads them); the CSR start
-    of each cell's buckets (``max(1, references // per_bucket)`` of them); the
-    first reference of each bucket: bucket ``k`` of a cell holds the offsets in
-    ``[lowest + k/scale, lowest + (k+1)/scale)``, the last one everything above.
-    """
-    starts = cell_start.astype(np.int64)
-    counts = np.diff(starts)
-    buckets = np.maximum(1, counts // per_bucket)
-    cell_bucket = np.zeros(len(counts) + 1, np.int64)
-    np.cumsum(buckets, out=cell_bucket[1:])
-    occupied = counts > 0
-    lowest = np.zeros(len(counts), np.float32)
-    highest = np.zeros(len(counts), np.float32)
-    lowest[occupied] = offsets[starts[:-1][occupied]]
-    highest[occupied] = offsets[starts[1:][occupied] - 1]
-    span = highest.astype(np.float64) - lowest
-    # float32, as the kernel reads it; the kernel's rounding is covered by its offset padding
-    scale = np.where(span > 0, buckets / np.where(span > 0, span, 1.0), 0.0).astype(np.float32)
-    # the bucket of every reference (non-decreasing within a cell: offsets are sorted), in chunks
-    per_bucket_count = np.zeros(int(cell_bucket[-1]), np.int64)
-    for first in range(0, int(starts[-1]), 1 << 22):
-        last = min(first + (1 << 22), int(starts[-1]))
-        owner = np.searchsorted(starts, np.arange(first, last), side="right") - 1
-        k = np.floor((offsets[first:last].astype(np.float64) - lowest[owner]) * scale[owner])
-        k = np.clip(k, 0, buckets[owner] - 1).astype(np.int64)
-        per_bucket_count += np.bincount(cell_bucket[owner] + k, minlength=len(per_bucket_count))
-        del owner, k
-    bucket_start = np.zeros(len(per_bucket_count) + 1, np.int64)
-    np.cumsum(per_bucket_count, out=bucket_start[1:])
-    frames = empty_aligned((len(counts), 4), np.float32)
-    frames[:, 0:2] = cell_frames[:, 0:2]
-    # the scan's low end is (offset - spread), so its bucket is floor((offset - (lowest + spread)) * scale)
-    frames[:, 2] = lowest + cell_frames[:, 2]
-    frames[:, 3] = scale
-    return frames, aligned(cell_bucket[:-1].astype(np.uint32)), aligned(bucket_start.astype(np.uint32))
+            continuation=aligned_array(mi.Float, relative_continuation(tables).ravel()) if continuation else None,
+            triangular=profiles_of(tables))
 
 
 @dataclass

@@ -17,16 +17,16 @@ import drjit as dr
 import mitsuba as mi
 
 from . import sampling
-from .complexmath import Cx
+from .maths.complexmath import Cx
 from .energy import albedo_excess
 from .fresnel import fresnel_conductor
 from .lookup import Grid, for_each_crossing, for_each_segment, jacobian, replay_pieces, segment_at
-from .overlap import crossing_correction
-from .parallel import RECENT_PIECES, add_parallel_overlaps
+from .heightfield.overlap import crossing_correction
+from .heightfield.parallel import RECENT_PIECES, add_parallel_overlaps
 from .periodic import MAX_INCOHERENT_WIDTH_SIGMAS, family_field, family_intensity, find_family, run_energies
-from .segment import SegmentGeometry, amplitude, frequencies, incoherent_intensity
-from .triples import add_triples
-from .window import mirror_lobe
+from .maths.segment import SegmentGeometry, amplitude, frequencies, incoherent_intensity
+from .heightfield.triples import add_triples
+from .maths.window import mirror_lobe
 
 __all__ = ["Model", "WINDOW_RADIUS_SIGMAS"]
 

@@ -11,11 +11,13 @@ import drjit as dr
 import mitsuba as mi
 
 from .. import scratch
-from . import disk_cache, handoff, memory, parameters, persistent, tables
+from . import handoff, parameters, persistent, tensors
 from .fresnel import ConductorSpectra, material_textures
-from .lookup import Grid, ScanArrays
+from .lookup import Grid
 from .model import Model
-from .incremental import update_tables
+from .tables import disk_cache, grid
+from .tables.incremental import update_tables
+from .tables.scan import ScanArrays
 
 __all__ = ["plugin_class", "MANUAL"]
 
@@ -162,7 +164,7 @@ def _check_variant() -> None:
 
 def _read_scratches(props):
     """The scratch set named by the properties (file or in-memory keys), validated."""
-    in_memory = [key for key in memory.KEYS if key in props]
+    in_memory = [key for key in tensors.KEYS if key in props]
     filename = props.get("filename", "")
     if filename and in_memory:
         raise ValueError("give either 'filename' or the in-memory keys scratch_*, not both")
@@ -175,7 +177,7 @@ def _read_scratches(props):
         except OSError as error:
             raise ValueError(f"parameter 'filename': cannot read scratch file '{path}': {error}") from None
     if in_memory:
-        return memory.from_values({key: props[key] for key in in_memory})
+        return tensors.from_values({key: props[key] for key in in_memory})
     return scratch.ScratchSet.empty()
 
 
@@ -233,7 +235,7 @@ def _make_class() -> type:
             self.m_flags = glossy | (diffuse if self.diffuse is not None else 0)
 
             scratches = _read_scratches(props)
-            self.scratch_values = memory.to_tensors(scratches)
+            self.scratch_values = tensors.to_tensors(scratches)
             self._set_scratches(scratches)
 
         def _set_scratches(self, scratches):
@@ -256,7 +258,7 @@ def _make_class() -> type:
                         disk_cache.store_tables(key, cache, scan)
                 return cache, Grid.from_arrays(cache.tables, scan, continuation=continuation)
 
-            options = (self.cell_size, self._height_field, periodic, continuation, tables.build_constants())
+            options = (self.cell_size, self._height_field, periodic, continuation, grid.build_constants())
             if previous is None:  # a new BSDF: another live scene or Persistent Data may hold its tables
                 self.shared_tables = persistent.reuse_or_build(scratches, options, build)
             else:  # an edited set: entered for later scenes (F12 after painting in the viewport)
@@ -332,11 +334,20 @@ def _make_class() -> type:
                 if texture is not None:
                     callback.put(name, texture, mi.ParamFlags.Differentiable)
 
+        def set_scratch_set(self, scratches):
+            """Swap the scratch set for ``scratches`` (:func:`..update_scratches`): the tables are updated
+            (extended where the set only appends) and the traversed ``scratch_*`` tensors point at its arrays."""
+            if not isinstance(scratches, scratch.ScratchSet):
+                raise TypeError(f"expected a ScratchSet, got {type(scratches).__name__}")
+            for key, value in tensors.to_tensors(scratches).items():
+                mi.set_property(self.scratch_values[key], value)  # in place: mi.traverse holds these objects
+            self._set_scratches(scratches)
+
         def parameters_changed(self, keys):
             keys = set(keys)
-            if not keys or keys & set(memory.KEYS):
+            if not keys or keys & set(tensors.KEYS):
                 try:
-                    scratches = memory.from_values(self.scratch_values)
+                    scratches = tensors.from_values(self.scratch_values)
                 except scratch.ScratchFormatError as error:
                     raise ValueError(f"{parameters.PLUGIN_NAME}: {error}") from error
                 self._set_scratches(scratches)

@@ -9,8 +9,8 @@ import math
 
 import drjit as dr
 
-from . import profiles
-from .segment import SegmentGeometry
+from .maths import profiles
+from .maths.segment import SegmentGeometry
 
 __all__ = [
     "lobe_std", "sample_mirror", "pdf_mirror", "window_energy", "selection_weight", "groove_energy",

@@ -14,10 +14,10 @@ from ..scene import Mask, RenderSettings, SceneDescription, Transparent, walk_ma
 from .camera import film_dict, integrator_dict, sensor_dict, window_camera
 from .lights import light_dict, world_dict
 from .materials import add_weights, bsdf_dict, emitter_dict
-from .resources import InMemory, ToFolder, load_dict, safe_name
+from .resources import InMemory, load_dict, safe_name
 from .transform import to_mitsuba
 
-__all__ = ["scene_dict", "load_scene", "load_dict", "InMemory", "ToFolder", "sensor_dict", "film_dict",
+__all__ = ["scene_dict", "load_scene", "load_dict", "InMemory", "sensor_dict", "film_dict",
            "integrator_dict", "window_camera", "bsdf_dict", "emitter_dict", "add_weights", "light_dict", "world_dict",
            "material_id", "MIN_INSTANCES"]
 
@@ -34,7 +34,7 @@ def scene_dict(description: SceneDescription, settings: RenderSettings, resource
                instancing: bool = True) -> dict:
     """The ``mi.load_dict`` dict of ``description``.
 
-    With :class:`ToFolder` resources materials are top-level entries that shapes
+    With :class:`...folder.resources.ToFolder` resources materials are top-level entries that shapes
     reference (written once in the XML); in memory the resources share one
     loaded BSDF per material instead.
 
@@ -45,7 +45,7 @@ def scene_dict(description: SceneDescription, settings: RenderSettings, resource
     no emitters); ``instancing=False`` turns sharing off (comparisons, benchmarks).
     """
     resources = InMemory() if resources is None else resources
-    shared = isinstance(resources, ToFolder)
+    shared = resources.shares_materials
     result: dict = {
         "type": "scene",
         "integrator": integrator_dict(settings, description.film,

@@ -231,7 +231,7 @@ def scaled(material, factor: float):
 
 def _linear_pixels(texture: Texture) -> np.ndarray:
     """The linear RGB pixels of ``texture`` (files are read with Mitsuba's own image loader)."""
-    from ..colour import srgb_to_linear
+    from ..scene.colour import srgb_to_linear
 
     if texture.pixels is not None:
         pixels = srgb_to_linear(texture.pixels) if texture.srgb else texture.pixels

@@ -6,26 +6,28 @@ for the heavy parts:
 * :class:`InMemory` (rendering): meshes become ``mi.Mesh`` objects filled from
   numpy, textures ``mi.Bitmap`` objects or the user's own files, scratch sets
   are handed to the BSDF as arrays — no temporary files.
-* :class:`ToFolder` (export): meshes are written once per mesh as PLY files in
-  object space and placed with ``to_world``, textures are copied or written as
-  EXR, scratch sets as format-v1 files; the dict references them by paths
-  relative to the folder.
+* :class:`...folder.resources.ToFolder` (export): meshes are written once per mesh
+  as PLY files in object space and placed with ``to_world``, textures are copied
+  or written as EXR, scratch sets as format-v1 files; the dict references them by
+  paths relative to the folder.
+
+Both have the same methods (``texture``, ``environment``, ``scratch_bsdf``, ``shape``,
+``instanced_shape``) and say with ``shares_materials`` whether materials are top-level
+entries that shapes reference (a folder's XML) or objects loaded once per material (memory).
 """
 from __future__ import annotations
 
 import re
-import shutil
-from pathlib import Path
 
 import numpy as np
 
-from .. import scratch as scratch_io
-from ..bsdf.references import aligned_array
-from ..colour import srgb_to_linear
+from ..bsdf.tables.references import aligned_array
+from ..scene.colour import srgb_to_linear
 from ..scene import MeshData, ScratchedMetal, Shape, Texture
 from .transform import to_mitsuba
 
-__all__ = ["InMemory", "ToFolder", "world_geometry", "safe_name", "mesh_buffer"]
+__all__ = ["InMemory", "world_geometry", "safe_name", "mesh_buffer", "bitmap_options", "scratch_plugin_settings",
+           "load_dict"]
 
 # Image rows run top-down, Blender's v runs bottom-up: look textures up at (u, 1 - v).
 _FLIP_V = np.array([[1.0, 0, 0, 0], [0, -1.0, 0, 1.0], [0, 0, 1.0, 0], [0, 0, 0, 1.0]])
@@ -60,7 +62,8 @@ def world_geometry(shape: Shape) -> tuple[np.ndarray, np.ndarray, np.ndarray | N
     return positions, np.ascontiguousarray(faces, dtype=np.uint32), normals
 
 
-def _bitmap_options(texture: Texture, colour: bool) -> dict:
+def bitmap_options(texture: Texture, colour: bool) -> dict:
+    """The ``bitmap`` plugin's options for ``texture`` besides its pixels (UV flip, filter, raw)."""
     return {
         "to_uv": to_mitsuba(_FLIP_V),
         "filter_type": "nearest" if texture.interpolation == "nearest" else "bilinear",
@@ -89,6 +92,8 @@ def load_dict(description: dict):
 class InMemory:
     """Resources for rendering straight from memory."""
 
+    shares_materials = False  #: each material's BSDF is loaded once and handed to its shapes
+
     def __init__(self):
         self._bsdfs: dict[str, object] = {}
         self._textures: dict[tuple[str, bool], dict] = {}
@@ -98,7 +103,7 @@ class InMemory:
 
         key = (texture.name, colour)
         if key not in self._textures:
-            result = {"type": "bitmap", **_bitmap_options(texture, colour)}
+            result = {"type": "bitmap", **bitmap_options(texture, colour)}
             if texture.path is not None:
                 result["filename"] = str(texture.path)
             else:
@@ -120,7 +125,7 @@ class InMemory:
         from ..bsdf import plugin_dict
 
         scratches = material.scratches if material.scratches.count else None  # None: unscratched metal
-        return plugin_dict(scratches, **_scratch_settings(material))
+        return plugin_dict(scratches, **scratch_plugin_settings(material))
 
     def shape(self, shape: Shape, bsdf: dict, emitter: dict | None, *, material_key: str):
         """An ``mi.Mesh`` in world space, filled from numpy, with its BSDF (shared per material)."""
@@ -166,77 +171,9 @@ def mesh_buffer(kind, values, dtype=np.float32):
     return aligned_array(kind, np.ascontiguousarray(values, dtype=dtype).ravel())
 
 
-class ToFolder:
-    """Resources for a self-contained export folder (paths in the dict are relative to it)."""
-
-    def __init__(self, folder):
-        self.folder = Path(folder)
-        self._meshes: dict[int, str] = {}
-        self._textures: dict[str, str] = {}
-        self._names: set[str] = set()
-
-    def _unique(self, subfolder: str, name: str, suffix: str) -> str:
-        base = f"{subfolder}/{safe_name(name)}"
-        candidate, index = base + suffix, 1
-        while candidate in self._names:
-            candidate, index = f"{base}_{index:03d}{suffix}", index + 1
-        self._names.add(candidate)
-        (self.folder / subfolder).mkdir(parents=True, exist_ok=True)
-        return candidate
-
-    def _texture_file(self, texture: Texture) -> str:
-        if texture.name not in self._textures:
-            if texture.path is not None:
-                suffix = Path(texture.path).suffix.lower() or ".png"
-                relative = self._unique("textures", Path(texture.name).stem, suffix)
-                shutil.copyfile(texture.path, self.folder / relative)
-            else:
-                from ..exr import write_exr
-
-                relative = self._unique("textures", Path(texture.name).stem, ".exr")
-                pixels = srgb_to_linear(texture.pixels) if texture.srgb else texture.pixels
-                write_exr(self.folder / relative, pixels[..., :3])
-            self._textures[texture.name] = relative
-        return self._textures[texture.name]
-
-    def texture(self, texture: Texture, *, colour: bool) -> dict:
-        return {"type": "bitmap", "filename": self._texture_file(texture), **_bitmap_options(texture, colour)}
-
-    def environment(self, texture: Texture) -> dict:
-        return {"filename": self._texture_file(texture)}
-
-    def scratch_bsdf(self, material: ScratchedMetal, *, key: str) -> dict:
-        from ..bsdf import plugin_dict
-
-        if not material.scratches.count:
-            return plugin_dict(**_scratch_settings(material))
-        relative = self._unique("scratches", key, ".npz")
-        scratch_io.save(material.scratches, self.folder / relative)
-        return plugin_dict(filename=relative, **_scratch_settings(material))
-
-    def shape(self, shape: Shape, bsdf: dict, emitter: dict | None, *, material_key: str) -> dict:
-        """A ``ply`` shape: the mesh file is written once and shared by its instances."""
-        result = {"type": "ply", "filename": self._ply(shape.mesh), "to_world": to_mitsuba(shape.to_world),
-                  "bsdf": bsdf}
-        if emitter is not None:
-            result["emitter"] = emitter
-        return result
-
-    def instanced_shape(self, mesh: MeshData, bsdf: dict, *, material_key: str) -> dict:
-        """A ``ply`` shape in object space for a ``shapegroup``."""
-        return {"type": "ply", "filename": self._ply(mesh), "bsdf": bsdf}
-
-    def _ply(self, mesh: MeshData) -> str:
-        from ..ply import write_ply
-
-        if id(mesh) not in self._meshes:
-            relative = self._unique("meshes", mesh.name, ".ply")
-            write_ply(self.folder / relative, mesh.positions, mesh.faces, mesh.normals, mesh.uvs)
-            self._meshes[id(mesh)] = relative
-        return self._meshes[id(mesh)]
-
-
-def _scratch_settings(material: ScratchedMetal) -> dict:
+def scratch_plugin_settings(material: ScratchedMetal) -> dict:
+    """The ``scratch_diffraction`` plugin's settings for ``material``, all but its scratches: the one
+    mapping of :class:`...scene.ScratchedMetal` to the plugin (rendering, export and the session's updates)."""
     settings = dict(coherence_diameter=material.coherence_diameter_m, unit_scale=material.metres_per_unit,
                     material=material.material, coherent=material.coherent, crossings=material.crossings,
                     depth_phase=material.depth_phase)

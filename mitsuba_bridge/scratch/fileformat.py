@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from .archive import ArchiveReader
-from ..atomic import write_atomically
+from ..files.atomic import write_atomically
 from .scratchset import (FIELD_SPECS, MAX_SCRATCHES, MAX_VERTICES, ScratchFormatError, ScratchSet,
                          validate_offsets)
 

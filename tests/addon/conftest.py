@@ -1,11 +1,15 @@
 """Headless Blender fixtures: the add-on registered once, a fresh empty file per test.
 
 Blender is imported by the fixtures, not here, so that ``tests/addon/geometry/``
-(Blender-free helpers) runs where ``bpy`` is missing; the Blender tests skip.
+(Blender-free helpers) runs where ``bpy`` is missing; the Blender tests of this folder
+are then not collected (they import ``bpy`` at module level).
 """
+import importlib.util
+
 import pytest
 
-bpy = pytest.importorskip("bpy")
+if importlib.util.find_spec("bpy") is None:
+    collect_ignore_glob = ["test_*.py"]  # this folder's own tests; geometry/ needs no Blender
 
 
 @pytest.fixture(scope="session")
@@ -61,6 +65,7 @@ def scratched_plane(plane):
 def cycles(addon):
     """Blender's Cycles add-on enabled for a module's comparisons (skips where the build has none)."""
     import addon_utils
+    import bpy
 
     addon_utils.enable("cycles", default_set=True)
     if not hasattr(bpy.types.Scene, "cycles"):

@@ -96,7 +96,7 @@ def set_world(scene, colour=(0, 0, 0), strength=1.0):
 
 def render_to(scene, path):
     """``bpy.ops.render.render(write_still=True)`` into ``path``; returns the image (H, W, 4), row 0 at the top."""
-    from scratch_iridescence.mitsuba_bridge.exr import read_exr
+    from scratch_iridescence.mitsuba_bridge.files.exr import read_exr
 
     scene.render.filepath = str(path)
     bpy.ops.render.render(write_still=True)

@@ -18,7 +18,7 @@ import pytest
 
 bpy = pytest.importorskip("bpy")
 from render_scenes import add_camera, add_light, add_plane, bright_centroid, emission, material  # noqa: E402
-from scratch_iridescence.mitsuba_bridge.exr import read_exr  # noqa: E402
+from scratch_iridescence.mitsuba_bridge.files.exr import read_exr  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 

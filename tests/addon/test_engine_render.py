@@ -11,7 +11,7 @@ bpy = pytest.importorskip("bpy")
 from render_scenes import (add_camera, add_light, add_plane, blender_pixel, bright_centroid, emission,  # noqa: E402
                            material, missing_image, render_to, set_world, setup_render, textured)
 from scratch_iridescence.addon.render.frame import render_frame  # noqa: E402
-from scratch_iridescence.mitsuba_bridge.exr import read_exr  # noqa: E402
+from scratch_iridescence.mitsuba_bridge.files.exr import read_exr  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -207,7 +207,7 @@ def test_no_camera_is_refused_before_rendering(empty_scene, tmp_path):
 
 
 def test_a_render_bigger_than_free_memory_is_refused_with_the_estimate(lit, tmp_path, monkeypatch):
-    from scratch_iridescence.mitsuba_bridge import footprint
+    from scratch_iridescence.mitsuba_bridge.render import memory as footprint
 
     monkeypatch.setattr(footprint, "available_memory_bytes", lambda: 10_000)  # 32 x 24 needs about 0.2 MB
     lit.render.filepath = str(tmp_path / "big.exr")
@@ -363,7 +363,7 @@ def test_missing_texture_renders_magenta_with_a_warning(recording, empty_scene, 
 def test_ctrl_c_in_blenders_terminal_cancels_and_keeps_the_chunks_before(recording, lit, tmp_path, monkeypatch):
     """Mitsuba's SIGINT handler stops the chunk it is in (render.RenderInterrupted, as `should_stop()` says):
     F12 ends as cancelled with the chunks before it, never with the stopped chunk's partial samples."""
-    from scratch_iridescence.mitsuba_bridge import freezing, render as passes
+    from scratch_iridescence.mitsuba_bridge.render import freezing, passes as passes
 
     real, calls = freezing.FrozenRender.__call__, []
 

@@ -197,7 +197,7 @@ def test_sky_texture_becomes_sunsky_with_blenders_sun_position(staged):
 
 
 def test_environment_texture_with_mapping_rotation(staged, tmp_path):
-    from scratch_iridescence.mitsuba_bridge.exr import write_exr
+    from scratch_iridescence.mitsuba_bridge.files.exr import write_exr
 
     write_exr(tmp_path / "sky.exr", np.ones((8, 16, 3), np.float32))
     world = set_world(staged, strength=1.5)

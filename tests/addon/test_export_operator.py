@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 
 bpy = pytest.importorskip("bpy")
-from render_scenes import add_camera, add_light, add_plane, emission, render_to, setup_render, textured  # noqa: E402
-from scratch_iridescence.mitsuba_bridge.exr import read_exr, write_exr  # noqa: E402
+from render_scenes import (add_camera, add_light, add_plane, emission, material, render_to,  # noqa: E402
+                           setup_render, textured)
+from scratch_iridescence.mitsuba_bridge.files.exr import read_exr, write_exr  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -48,6 +49,34 @@ def test_command_line_render_of_the_export_matches_the_engine(striped_scene, tmp
     cli, engine = cli_image[..., :3], engine_image[..., :3]
     assert engine.mean() > 0.1 and cli.mean() == pytest.approx(engine.mean(), rel=0.02)
     assert np.corrcoef(cli[..., 1].ravel(), engine[..., 1].ravel())[0, 1] > 0.98
+
+
+def test_command_line_renders_an_export_with_the_scenes_seed_as_the_engine_does(plane, tmp_path):
+    """Without ``--seed`` the command line takes the scene's seed (written into the export), as F12 does: one
+    sun, one scratched plate and a diffuse tile, so both load the same plugins in the same order and draw the same
+    samples."""
+    scene = setup_render(bpy.context.scene, 40, 30, samples=8)
+    scene.scratch_iridescence.seed = 1234
+    add_camera(scene, location=(0, 0, 3), lens=40)
+    add_light(scene, "SUN", energy=3, rotation=(0.6, 0.0, 0.0))
+    bpy.ops.scratch.generate(count=200, seed=3)
+    # a diffuse tile beside the plate: its colour noise (the sampled wavelengths) shows the seed
+    add_plane(scene, size=0.6, location=(0.6, 0.3, 0.2), mat=material("Tile", Color=(0.8, 0.5, 0.2, 1.0)),
+              name="Tile")
+    engine_image = render_to(scene, tmp_path / "engine.exr")
+    bpy.ops.scratch.export_mitsuba(directory=str(tmp_path / "scene"))
+    cli = [sys.executable, "-m", "scratch_iridescence.mitsuba_bridge", "render", str(tmp_path / "scene")]
+    for name, extra in (("default", []), ("seed0", ["--seed", "0"])):
+        result = subprocess.run([*cli, "-o", str(tmp_path / f"{name}.exr"), *extra], capture_output=True, text=True,
+                                cwd=ROOT)
+        assert result.returncode == 0, result.stderr
+    default, seed0, engine = (image[..., :3] for image in (read_exr(tmp_path / "default.exr"),
+                                                          read_exr(tmp_path / "seed0.exr"), engine_image))
+    # The same samples: equal up to float rounding (the XML's decimal matrices; measured 1 ulp at most), while
+    # another seed's colour noise moves the tile's pixels by percents.
+    assert engine.max() > 0.1
+    np.testing.assert_allclose(default, engine, rtol=1e-4, atol=1e-6)
+    assert np.abs(seed0 - engine).max() > 100 * np.abs(default - engine).max() + 1e-3
 
 
 def test_export_without_a_camera_reports_an_error(empty_scene, tmp_path):

@@ -6,14 +6,16 @@ import pytest
 bpy = pytest.importorskip("bpy")
 from render_scenes import add_camera  # noqa: E402
 from scratch_iridescence.addon.render.gather import gather_scene  # noqa: E402
-from scratch_iridescence.mitsuba_bridge import builder, variants  # noqa: E402
+from scratch_iridescence.mitsuba_bridge import builder  # noqa: E402
+from scratch_iridescence.mitsuba_bridge.device import variants  # noqa: E402
+from scratch_iridescence.mitsuba_bridge.render.activation import activate
 from scratch_iridescence.mitsuba_bridge import scene as S  # noqa: E402
 
 
 @pytest.fixture
 def staged(empty_scene):
     add_camera(empty_scene)
-    variants.activate("llvm_ad_spectral")
+    activate("llvm_ad_spectral")
     return empty_scene
 
 

@@ -187,7 +187,7 @@ def test10_paper_runner_builds_renders_and_writes_the_pages(tmp_path):
     """``make paper`` in miniature: the grated plate at 5 % resolution, built and rendered by fresh worker
     processes; the pictures, the statistics and both pages read back."""
     from scratch_iridescence.scenes import pages
-    from scratch_iridescence.mitsuba_bridge.exr import read_exr
+    from scratch_iridescence.mitsuba_bridge.files.exr import read_exr
 
     output, docs = tmp_path / "out", tmp_path / "docs"
     assert paper.main(["--only", "fig09_grating", "--scale", "0.05", "--samples-scale", "0.02", "--no-validation",

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 bpy = pytest.importorskip("bpy")
-from scratch_iridescence.mitsuba_bridge.exr import read_exr  # noqa: E402
+from scratch_iridescence.mitsuba_bridge.files.exr import read_exr  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 

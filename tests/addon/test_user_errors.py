@@ -10,7 +10,7 @@ from scratch_iridescence.addon.operators.editing import USER_ERRORS  # noqa: E40
 from scratch_iridescence.addon.render.gather import GatherError  # noqa: E402
 from scratch_iridescence.mitsuba_bridge import scratch  # noqa: E402
 from scratch_iridescence.mitsuba_bridge.errors import ParameterError, ScratchUserError  # noqa: E402
-from scratch_iridescence.mitsuba_bridge.variants import VariantError  # noqa: E402
+from scratch_iridescence.mitsuba_bridge.device.variants import VariantError  # noqa: E402
 
 
 def test01_every_user_error_is_a_scratch_user_error_and_keeps_its_builtin_base():

@@ -21,6 +21,7 @@ from scratch_iridescence.addon.render.gather.camera import gather_camera  # noqa
 from scratch_iridescence.addon.render.view import view_camera  # noqa: E402
 from scratch_iridescence.addon.render.viewport import ViewportRender, coalesce  # noqa: E402
 from scratch_iridescence.mitsuba_bridge import scene as S  # noqa: E402
+from scratch_iridescence.mitsuba_bridge.render.session import Change, Update  # noqa: E402
 
 WIDTH, HEIGHT = 64, 48
 
@@ -136,7 +137,7 @@ def test02_orthographic_view_keeps_width_and_shift_and_starts_in_front(studio):
 
 def test03_moving_an_object_is_a_transform_of_its_shape(studio, updates_of):
     updates = updates_of(lambda: setattr(studio.cube, "location", (1.0, 0.5, 0.2)))
-    assert [u.kind for u in updates] == ["transform"]
+    assert [u.change.value for u in updates] == ["transform"]
     name, matrix = updates[0].args
     assert name == "Cube" and np.allclose(matrix[:3, 3], (1.0, 0.5, 0.2))
 
@@ -145,41 +146,41 @@ def test04_a_pen_stroke_is_a_scratch_update_of_the_object(studio, updates_of):
     before = storage.read_scratches(studio.plane).count
     points = [(-0.5, -0.3, 0.0), (0.0, 0.1, 0.0), (0.5, 0.2, 0.0)]
     updates = updates_of(lambda: bpy.ops.scratch.paint_stroke("EXEC_DEFAULT", True, stroke=stroke(points), seed=1))
-    assert [u.kind for u in updates] == ["scratches"]
+    assert [u.change.value for u in updates] == ["scratches"]
     key, scratches = updates[0].args
     assert key == "scratches:Plane" and scratches.count == before + 1
 
 
 def test05_generate_import_and_undo_are_scratch_updates(studio, updates_of, tmp_path):
     bpy.ops.ed.undo_push(message="before")
-    assert [u.kind for u in updates_of(lambda: bpy.ops.scratch.generate("EXEC_DEFAULT", True, count=30, seed=2))] == ["scratches"]
+    assert [u.change.value for u in updates_of(lambda: bpy.ops.scratch.generate("EXEC_DEFAULT", True, count=30, seed=2))] == ["scratches"]
     undone = updates_of(lambda: bpy.ops.ed.undo())
-    assert [u.kind for u in undone] == ["scratches"] and undone[0].args[1].count == 50
+    assert [u.change.value for u in undone] == ["scratches"] and undone[0].args[1].count == 50
     path = tmp_path / "set.npz"
     bpy.ops.scratch.export_file(filepath=str(path))
     imported = updates_of(lambda: bpy.ops.scratch.import_file(filepath=str(path), mode="ADD"))
-    assert [u.kind for u in imported] == ["scratches"] and imported[0].args[1].count == 100
+    assert [u.change.value for u in imported] == ["scratches"] and imported[0].args[1].count == 100
 
 
 def test06_light_world_and_material_values_update_in_place(studio, updates_of):
     updates = updates_of(lambda: setattr(studio.light.data, "energy", 400.0))
-    assert [u.kind for u in updates] == ["light"]
+    assert [u.change.value for u in updates] == ["light"]
     index, light = updates[0].args
     assert index == 0 and light.intensity[0] == pytest.approx(400.0 / (4 * math.pi), rel=1e-6)
     background = studio.scene.world.node_tree.nodes["Background"]
     updates = updates_of(lambda: background.inputs["Color"].default_value.__setitem__(0, 0.5))
-    assert [u.kind for u in updates] == ["world"] and updates[0].args[0].radiance[0] == pytest.approx(0.5)
+    assert [u.change.value for u in updates] == ["world"] and updates[0].args[0].radiance[0] == pytest.approx(0.5)
     paint = bpy.data.materials["Paint"].node_tree.nodes["Diffuse BSDF"]
     updates = updates_of(lambda: paint.inputs["Color"].default_value.__setitem__(1, 0.6))
-    assert [u.kind for u in updates] == ["material"]
+    assert [u.change.value for u in updates] == ["material"]
     assert updates[0].args[0] == "material:Paint" and updates[0].args[1].reflectance[1] == pytest.approx(0.6)
 
 
 def test07_scratch_material_settings_update_the_bsdf(studio, updates_of):
     updates = updates_of(lambda: setattr(studio.plane.scratch_iridescence, "coherent", not studio.plane.scratch_iridescence.coherent))
-    assert [u.kind for u in updates] == ["material"]
+    assert [u.change.value for u in updates] == ["material"]
     updates = updates_of(lambda: setattr(studio.plane.scratch_iridescence, "crossings", "height_field"))
-    assert [u.kind for u in updates] == ["material"] and updates[0].args[1].crossings == "height_field"
+    assert [u.change.value for u in updates] == ["material"] and updates[0].args[1].crossings == "height_field"
 
 
 def test08_edits_without_a_cheaper_form_rebuild(studio, updates_of):
@@ -187,15 +188,15 @@ def test08_edits_without_a_cheaper_form_rebuild(studio, updates_of):
         studio.cube.data.vertices[0].co.x += 0.05
         studio.cube.data.update()
 
-    assert updates_of(move_vertex) == [sync.Update("build")]
-    assert updates_of(lambda: bpy.ops.scratch.clear()) == [sync.Update("build")]  # no longer a scratch BSDF
-    assert updates_of(lambda: setattr(studio.cube, "hide_render", True)) == [sync.Update("build")]
-    assert updates_of(lambda: setattr(studio.scene.scratch_iridescence, "max_depth", 3)) == [sync.Update("build")]
+    assert updates_of(move_vertex) == [Update(Change.BUILD)]
+    assert updates_of(lambda: bpy.ops.scratch.clear()) == [Update(Change.BUILD)]  # no longer a scratch BSDF
+    assert updates_of(lambda: setattr(studio.cube, "hide_render", True)) == [Update(Change.BUILD)]
+    assert updates_of(lambda: setattr(studio.scene.scratch_iridescence, "max_depth", 3)) == [Update(Change.BUILD)]
 
 
 def test09_coalescing_keeps_the_last_build_and_the_last_camera():
-    build, camera1, camera2 = sync.Update("build", (1,)), sync.Update("camera", (1,)), sync.Update("camera", (2,))
-    light = sync.Update("light", (0, None))
+    build, camera1, camera2 = Update(Change.BUILD, (1,)), Update(Change.CAMERA, (1,)), Update(Change.CAMERA, (2,))
+    light = Update(Change.LIGHT, (0, None))
     assert coalesce([light, build, camera1, light, camera2]) == [build, light, camera2]
 
 

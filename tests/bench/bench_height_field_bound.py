@@ -95,7 +95,7 @@ def main():
     mi.set_variant("llvm_ad_spectral")
     from scratch_iridescence import mitsuba_bridge
     from scratch_iridescence.mitsuba_bridge.bsdf import plugin_dict
-    from scratch_iridescence.mitsuba_bridge.bsdf.probe import spectrum_rows
+    from scratch_iridescence.mitsuba_bridge.validation.probe import spectrum_rows
 
     mitsuba_bridge.register_plugins()
     rng = np.random.default_rng(args.seed + 1)

@@ -71,10 +71,11 @@ def measure(case: str, repeat: int) -> dict:
     import bpy
 
     from scratch_iridescence.addon.render.gather import gather_scene, gather_settings
-    from scratch_iridescence.mitsuba_bridge import builder, variants
+    from scratch_iridescence.mitsuba_bridge import builder
+    from scratch_iridescence.mitsuba_bridge.render.activation import activate
 
     build_scene(case)
-    variants.activate("llvm_ad_spectral")
+    activate("llvm_ad_spectral")
     settings = gather_settings(bpy.context.scene)
     depsgraph = bpy.context.evaluated_depsgraph_get()
     gather_times, load_times = [], []

@@ -35,8 +35,9 @@ def main():
     parser.add_argument("--bisect", action="store_true", help="replay the bisection scan it replaced")
     args = parser.parse_args()
 
-    from scratch_iridescence.mitsuba_bridge.bsdf.lookup import BUCKET_REFERENCES, OFFSET_PADDING, offset_buckets
-    from scratch_iridescence.mitsuba_bridge.bsdf.tables import CELL_DILATION, build_tables
+    from scratch_iridescence.mitsuba_bridge.bsdf.lookup import OFFSET_PADDING
+    from scratch_iridescence.mitsuba_bridge.bsdf.tables.scan import BUCKET_REFERENCES, offset_buckets
+    from scratch_iridescence.mitsuba_bridge.bsdf.tables.grid import CELL_DILATION, build_tables
 
     sys.path.insert(0, str(Path(__file__).parent))
     from bench_bsdf_memory import DISC_M, cd_scratches

@@ -98,7 +98,7 @@ def patched(name: str | None):
     import mitsuba as mi
 
     from scratch_iridescence.mitsuba_bridge.bsdf import model
-    from scratch_iridescence.mitsuba_bridge.bsdf.complexmath import Cx
+    from scratch_iridescence.mitsuba_bridge.bsdf.maths.complexmath import Cx
     from scratch_iridescence.mitsuba_bridge.bsdf.fresnel import fresnel_conductor
 
     saved = {"for_each_segment": model.for_each_segment, "find_family": model.find_family,
@@ -159,8 +159,8 @@ def main():
 
     mi.set_variant("llvm_ad_spectral")
     from scratch_iridescence import mitsuba_bridge
-    from scratch_iridescence.mitsuba_bridge import llvm_target
-    from scratch_iridescence.mitsuba_bridge.render import film_pixels
+    from scratch_iridescence.mitsuba_bridge.device import llvm_target
+    from scratch_iridescence.mitsuba_bridge.render.passes import film_pixels
 
     mitsuba_bridge.register_plugins()
     widths = args.llvm_widths or [None]
@@ -169,7 +169,7 @@ def main():
     best: dict[str, float] = {}
     for round_ in range(args.rounds + 1):  # round 0 compiles every variant's kernels
         for variant, width, label in labels:
-            # as variants.activate sets it, or as asked; a changed target compiles the kernels anew
+            # as activate() sets it, or as asked; a changed target compiles the kernels anew
             if not llvm_target.configure(vzeroupper=variant != "no-vzeroupper", vector_width=width):
                 raise SystemExit("this Dr.Jit exports no jit_llvm_set_target: --llvm-widths and "
                                  "no-vzeroupper cannot be measured")

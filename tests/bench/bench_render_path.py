@@ -35,7 +35,9 @@ def million_triangles(repeat: int) -> None:
     import bpy
 
     from scratch_iridescence.addon.render.gather import gather_scene, gather_settings
-    from scratch_iridescence.mitsuba_bridge import builder, export, variants
+    from scratch_iridescence.mitsuba_bridge import builder
+    from scratch_iridescence.mitsuba_bridge.render.activation import activate
+    from scratch_iridescence.mitsuba_bridge.folder import export
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
@@ -47,7 +49,7 @@ def million_triangles(repeat: int) -> None:
     scene.camera = camera
     depsgraph = bpy.context.evaluated_depsgraph_get()
     settings = gather_settings(scene)
-    variants.activate("llvm_ad_spectral")
+    activate("llvm_ad_spectral")
 
     t_gather, description = best_of(repeat, lambda: gather_scene(depsgraph))
     triangles = description.triangle_count
@@ -77,14 +79,16 @@ def demo_scene(repeat: int, resolution: int, spp: int) -> None:
 
     from scratch_iridescence.scenes import demo
     from scratch_iridescence.addon.render.gather import gather_scene, gather_settings
-    from scratch_iridescence.mitsuba_bridge import builder, render, variants
+    from scratch_iridescence.mitsuba_bridge import builder
+    from scratch_iridescence.mitsuba_bridge.render.activation import activate
+    from scratch_iridescence.mitsuba_bridge.render import passes as render
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
     demo.build_scene(scene, resolution=(resolution, resolution), samples=spp)
     depsgraph = bpy.context.evaluated_depsgraph_get()
     settings = gather_settings(scene)
-    variant = variants.activate(settings.variant)
+    variant = activate(settings.variant)
 
     def export_and_load():
         description = gather_scene(depsgraph)

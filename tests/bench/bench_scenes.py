@@ -73,11 +73,13 @@ def block_means(image: np.ndarray) -> np.ndarray:
 
 
 def render_folders(folders: list[Path], args) -> list[dict]:
-    from scratch_iridescence.mitsuba_bridge import batch, render
-    from scratch_iridescence.mitsuba_bridge.export import load_folder
-    from scratch_iridescence.mitsuba_bridge.output import write_image
-    from scratch_iridescence.mitsuba_bridge.schedule import sample_schedule
-    from scratch_iridescence.mitsuba_bridge.variants import activate, on_gpu
+    from scratch_iridescence.mitsuba_bridge.cli import batch
+    from scratch_iridescence.mitsuba_bridge.render import passes as render
+    from scratch_iridescence.mitsuba_bridge.folder.export import load_folder
+    from scratch_iridescence.mitsuba_bridge.files.images import write_image
+    from scratch_iridescence.mitsuba_bridge.render.schedule import sample_schedule
+    from scratch_iridescence.mitsuba_bridge.device.variants import on_gpu
+    from scratch_iridescence.mitsuba_bridge.render.activation import activate
 
     variant = activate(args.variant)
     out = Path(args.out) if args.out else None

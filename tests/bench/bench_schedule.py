@@ -43,10 +43,12 @@ def main() -> None:
 
     import numpy as np
 
-    from scratch_iridescence.mitsuba_bridge import builder, parts, render, schedule, scratch, variants
+    from scratch_iridescence.mitsuba_bridge import builder, scratch
+    from scratch_iridescence.mitsuba_bridge.render.activation import activate
+    from scratch_iridescence.mitsuba_bridge.render import parts, passes as render, schedule
     from scratch_iridescence.mitsuba_bridge import scene as S
 
-    variant = variants.activate("auto")
+    variant = activate("auto")
     import mitsuba as mi
     from test_scratched import metal, plate_scene
 

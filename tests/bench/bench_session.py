@@ -107,7 +107,8 @@ def median(edits, column):
 
 
 def run(args, crossings: str) -> dict:
-    from scratch_iridescence.mitsuba_bridge import interactive, scratch
+    from scratch_iridescence.mitsuba_bridge import scratch
+    from scratch_iridescence.mitsuba_bridge.render import session as interactive
     from scratch_iridescence.mitsuba_bridge.scene import RenderSettings
 
     description, scratches = demo_scene(*args.size, crossings)
@@ -162,7 +163,7 @@ def main():
     parser.add_argument("--seconds", type=float, default=3.0, help="time of the settled passes")
     parser.add_argument("--crossings", nargs="+", default=["additive"], choices=["additive", "height_field"])
     args = parser.parse_args()
-    from scratch_iridescence.mitsuba_bridge.variants import activate
+    from scratch_iridescence.mitsuba_bridge.render.activation import activate
 
     variant = activate(args.variant)
     print(f"{variant}, {args.size[0]} x {args.size[1]}, {args.moves} camera moves, {args.strokes} strokes")

@@ -22,10 +22,10 @@ from pathlib import Path
 
 CHILD = """
 import json, sys, time
-from scratch_iridescence.mitsuba_bridge import variants
-variants.activate("llvm_ad_spectral")
+from scratch_iridescence.mitsuba_bridge.render.activation import activate
+activate("llvm_ad_spectral")
 from scratch_iridescence.mitsuba_bridge import bsdf, scratch
-from scratch_iridescence.mitsuba_bridge.bsdf import disk_cache
+from scratch_iridescence.mitsuba_bridge.bsdf.tables import disk_cache
 scratches = {make}
 began = time.perf_counter()
 loaded = bsdf.load(scratches, unit_scale={unit_scale}, coherent={coherent})

@@ -97,11 +97,12 @@ def main():
                         help="pixels per strip of a CPU pass (0: whole passes, the reference for the strips)")
     args = parser.parse_args()
     if args.strip_pixels is not None:
-        from scratch_iridescence.mitsuba_bridge import interactive
+        from scratch_iridescence.mitsuba_bridge.render import session as interactive
 
         interactive.CPU_STRIP_PIXELS = args.strip_pixels
     if args.full_builds:
-        from scratch_iridescence.mitsuba_bridge.bsdf import incremental, plugin
+        from scratch_iridescence.mitsuba_bridge.bsdf import plugin
+        from scratch_iridescence.mitsuba_bridge.bsdf.tables import incremental
 
         plugin.update_tables = lambda previous, scratches, cell_size, crossings=False: incremental.update_tables(
             None, scratches, cell_size, crossings=crossings)
@@ -217,7 +218,7 @@ def main():
     import dataclasses
 
     from scratch_iridescence.addon.render.gather import gather_scene, gather_settings
-    from scratch_iridescence.mitsuba_bridge import interactive
+    from scratch_iridescence.mitsuba_bridge.render import session as interactive
 
     camera_now, film = viewport._view
     description = gather_scene(bpy.context.evaluated_depsgraph_get(), view=(camera_now, film))

@@ -15,6 +15,6 @@ VARIANT = os.environ.get("SCRATCH_TEST_VARIANT", "llvm_ad_spectral")
 @pytest.fixture(scope="session")
 def variant():
     """The test variant (``llvm_ad_spectral`` unless told otherwise) with the project's plugins registered."""
-    from scratch_iridescence.mitsuba_bridge import variants
+    from scratch_iridescence.mitsuba_bridge.render.activation import activate
 
-    return variants.activate(VARIANT)
+    return activate(VARIANT)

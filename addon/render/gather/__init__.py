@@ -10,7 +10,7 @@ import numpy as np
 
 from ....mitsuba_bridge.scene import (Checker, Emission, MeshData, RenderSettings, SceneDescription, ScratchedMetal,
                                       Shape, Texture, walk_materials)
-from ....mitsuba_bridge.finite import with_finite_meshes
+from ....mitsuba_bridge.scene.finite import with_finite_meshes
 from ....mitsuba_bridge.scratch import ScratchFormatError, ScratchSet
 from ...storage import has_scratches, read_scratches
 from .camera import gather_camera, gather_film

@@ -77,7 +77,7 @@ def image_pixels(node, *, alpha: bool = False) -> np.ndarray:
         return np.ascontiguousarray(np.repeat(level[..., None], 3, axis=2))
     colour = np.repeat(pixels[..., :1], 3, axis=2) if channels < 3 else pixels[..., :3]
     if _is_srgb(image) and not image.is_float:
-        from ....mitsuba_bridge.colour import srgb_to_linear
+        from ....mitsuba_bridge.scene.colour import srgb_to_linear
 
         colour = srgb_to_linear(colour)
     return np.ascontiguousarray(colour, dtype=np.float32)
