@@ -107,6 +107,122 @@ def test_gather_and_builder_meet_only_in_the_scene_description():
                     assert not module.startswith(forbidden), f"{path.relative_to(ROOT)} imports {node.module}"
 
 
+# ---- the bridge's rooms (docs/architecture.md): which room may import which
+#: Room -> the rooms it may import (besides itself), function-level imports included.  ``root`` is the
+#: package's ``__init__`` (the bundled libLLVM's set-up, ``register_plugins``), ``errors`` its user errors.
+BRIDGE_ROOMS = {
+    "errors": set(),
+    "device": {"errors"},
+    "files": {"errors"},
+    "scratch": {"errors", "files"},
+    "bsdf/maths": set(),
+    "bsdf/tables": {"errors", "scratch"},
+    "bsdf": {"errors", "scratch", "bsdf/maths", "bsdf/tables"},
+    "scene": {"errors", "scratch", "bsdf"},
+    "builder": {"errors", "files", "scratch", "bsdf", "bsdf/tables", "scene"},
+    "folder": {"errors", "files", "scratch", "bsdf", "scene", "builder"},
+    "render": {"root", "errors", "device", "files", "scratch", "bsdf", "scene", "builder"},
+    "validation": {"errors", "device", "scratch", "bsdf", "bsdf/tables", "render"},
+    "cli": {"errors", "device", "files", "scratch", "scene", "folder", "render", "validation"},
+    "root": {"device", "bsdf"},
+}
+#: Modules that must not touch Dr.Jit or Mitsuba, not even inside a function: the tables are built once per set
+#: on the host with numpy (docs/architecture.md); device/ and files/ are the floor everything stands on.
+NO_JIT = ("bsdf/tables",)
+
+
+def _bridge_room(module: str) -> str:
+    parts = module.split(".")[2:]  # scratch_iridescence.mitsuba_bridge.<room>...
+    if not parts or parts == ["__main__"]:
+        return "root" if not parts else "cli"
+    if parts[0] == "bsdf" and len(parts) > 1 and parts[1] in ("maths", "tables"):
+        return f"bsdf/{parts[1]}"
+    return parts[0]
+
+
+def _bridge_imports():
+    """``{module: {imported bridge module or package, ...}}`` and ``{module: {top-level outside names}}``, every
+    import of every bridge module (function-level ones too), relative names resolved."""
+    package = "scratch_iridescence.mitsuba_bridge"
+    modules = {}
+    for path in _python_files("mitsuba_bridge"):
+        relative = path.relative_to(ROOT / "mitsuba_bridge").with_suffix("")
+        parts = [p for p in relative.parts if p != "__init__"]
+        modules[".".join([package, *parts])] = (path, path.name == "__init__.py")
+    inside, outside = {}, {}
+    for name, (path, is_package) in modules.items():
+        base = name.split(".") if is_package else name.split(".")[:-1]
+        found, foreign = set(), set()
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.Import):
+                foreign.update(alias.name.split(".")[0] for alias in node.names)
+            elif isinstance(node, ast.ImportFrom) and node.level == 0:
+                foreign.add((node.module or "").split(".")[0])
+            elif isinstance(node, ast.ImportFrom):
+                target = ".".join(base[:len(base) - node.level + 1] + ([node.module] if node.module else []))
+                for alias in node.names:
+                    sub = f"{target}.{alias.name}"
+                    found.add(sub if sub in modules else target)
+        inside[name], outside[name] = found & modules.keys(), foreign
+    return inside, outside
+
+
+def test_bridge_rooms_import_only_the_rooms_below_them():
+    inside, _ = _bridge_imports()
+    assert len({_bridge_room(m) for m in inside}) >= 12, sorted({_bridge_room(m) for m in inside})
+    wrong = [f"{m} ({_bridge_room(m)}) imports {t} ({_bridge_room(t)})" for m, targets in sorted(inside.items())
+             for t in sorted(targets) if _bridge_room(t) != _bridge_room(m)
+             and _bridge_room(t) not in BRIDGE_ROOMS[_bridge_room(m)]]
+    assert not wrong, "\n".join(wrong)
+
+
+def test_the_bridge_has_no_import_circles():
+    # Function-level imports count: one that closes a circle means a name lives in the wrong room.
+    inside, _ = _bridge_imports()
+    index, low, stack, on_stack, circles = {}, {}, [], set(), []
+
+    def visit(module):  # Tarjan's strongly connected components
+        index[module] = low[module] = len(index)
+        stack.append(module)
+        on_stack.add(module)
+        for target in inside[module]:
+            if target not in index:
+                visit(target)
+                low[module] = min(low[module], low[target])
+            elif target in on_stack:
+                low[module] = min(low[module], index[target])
+        if low[module] == index[module]:
+            component = []
+            while True:
+                member = stack.pop()
+                on_stack.discard(member)
+                component.append(member)
+                if member == module:
+                    break
+            if len(component) > 1 or module in inside[module]:
+                circles.append(sorted(component))
+
+    for module in sorted(inside):
+        if module not in index:
+            visit(module)
+    assert not circles, circles
+
+
+def test_tables_never_touch_drjit_or_mitsuba():
+    _, outside = _bridge_imports()
+    jit = [f"{m} imports {sorted(names & {'drjit', 'mitsuba'})}" for m, names in sorted(outside.items())
+           if _bridge_room(m) in NO_JIT and names & {"drjit", "mitsuba"}]
+    assert not jit, jit
+
+
+def test_the_floor_rooms_import_nothing_above_them():
+    inside, _ = _bridge_imports()
+    for room in ("device", "files", "bsdf/maths"):
+        above = [f"{m} imports {t}" for m, targets in inside.items() if _bridge_room(m) == room
+                 for t in targets if _bridge_room(t) not in ({room} | BRIDGE_ROOMS[room])]
+        assert not above, above
+
+
 def test_top_level_layout_is_as_documented():
     tracked = subprocess.run(["git", "ls-files"], capture_output=True, text=True, cwd=ROOT).stdout.split()
     if not tracked:

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import drjit as dr
 import mitsuba as mi
@@ -189,9 +190,47 @@ class Model:
         active = searched & (wo.z > 0.0)
         searching = searched if keep_search else active
         wavelength, jac = self._hero(si)
-        sigma = self.sigma
-        coherent = self.coherent
+        q = self._frequencies(wi, wo, wavelength)
 
+        zero_s, zero_f = dr.zeros(mi.Spectrum), dr.zeros(mi.Float)
+        field = (q.lobe, zero_s) if self.coherent else (zero_s, zero_f)
+        energy0 = density0 = zero_f
+        scanning = searching & has_glossy & pieces_in_window
+        if family is FIND:
+            family = self._family(jac, searching & has_glossy) if has_glossy else None
+        if family is not None and has_glossy:  # lanes inside a periodic family: its closed form, no search
+            scanning &= ~family.eligible
+            field, energy0, density0 = self._family_terms(family, q, wi, field, zero_s, zero_f, want_value, want_pdf)
+        # "bounded": Σ_k e_k(ω_i), Σ_k e_k(ω_o), the albedo estimate's segment terms (docs/model.md §4.1)
+        bounded = self.depth_phase == "bounded" and self.coherent and want_value and has_glossy
+        # nearly parallel overlaps: each piece found is paired with the last RECENT_PIECES found (parallel.py)
+        pairing = self.height_field and self.parallel_overlaps and self.coherent and want_value and has_glossy
+        body = self._piece_terms(q, jac, wi, wo, wavelength, has_glossy=has_glossy, want_value=want_value,
+                                 want_pdf=want_pdf, bounded=bounded, pairing=pairing, keep_search=keep_search)
+
+        # (the excess sums, the recent and the kept pieces join the loop state only when they are used)
+        no_pieces = (dr.zeros(mi.UInt32), tuple(dr.zeros(mi.UInt32) for _ in range(RECENT_PIECES)))
+        none_kept = (dr.zeros(mi.UInt32), tuple(dr.zeros(mi.UInt32) for _ in range(REPLAY_PIECES)))
+        state = (field, energy0, density0, (zero_s, zero_s) if bounded else (), no_pieces if pairing else (),
+                 none_kept if keep_search else ())
+        (a, b), energy, density, excess, _, kept = _fold_pieces(self.grid, jac, WINDOW_RADIUS_SIGMAS * self.sigma,
+                                                                state, body, scanning, found)
+
+        value = pdf = None
+        if want_value:
+            if self.height_field and self.coherent and self.clamp_to_height_field_bound:
+                a, b = self._within_height_field_bound(a, b, self.sigma)
+            if bounded:  # f / max(1, Â(ω_i), Â(ω_o)): reciprocal, albedo ≤ 1 (docs/model.md §4.1)
+                a, b = self._bounded(a, b, *excess)
+            value = self._value(si, wo, q.inv_wavelength, q.lobe, a, b, has_glossy, has_diffuse, active)
+        if want_pdf:
+            pdf = self._pdf(si, wo, q, energy, density, has_glossy, has_diffuse, active)
+        if keep_search:
+            return value, pdf, (family, *kept)
+        return value, pdf
+
+    def _frequencies(self, wi, wo, wavelength) -> "_Frequencies":
+        """ξ, k_z and the mirror lobe per wavelength, and the hero wavelength's share of them (docs/model.md §1, §2)."""
         # ---- spatial frequency and depth phase, per wavelength
         spectrum = mi.Spectrum
         # (one reciprocal per wavelength, then products: divisions and square roots are what the
@@ -203,40 +242,40 @@ class Model:
             k_z = spectrum(((4.0 * math.pi) * wi.z) * inv_wavelength)
         else:
             k_z = spectrum(((2.0 * math.pi) * (wi.z + wo.z)) * inv_wavelength)
-        lobe = spectrum(mirror_lobe(xi_x * xi_x + xi_y * xi_y, sigma))
+        lobe = spectrum(mirror_lobe(xi_x * xi_x + xi_y * xi_y, self.sigma))
 
         # ---- hero-wavelength quantities of the sampling density
         lam0 = wavelength[0]
         kz0 = (4.0 * math.pi) * wi.z * inv_wavelength[0]  # κ / D at γ_o = γ_i (as sample()'s)
-        xi0_x, xi0_y = xi_x[0], xi_y[0]
+        return _Frequencies(inv_wavelength, xi_x, xi_y, k_z, lobe, lam0, kz0, xi_x[0], xi_y[0])
 
-        zero_s, zero_f = dr.zeros(mi.Spectrum), dr.zeros(mi.Float)
-        field = (lobe, zero_s) if coherent else (zero_s, zero_f)
+    def _family_terms(self, family, q: "_Frequencies", wi, field, zero_s, zero_f, want_value, want_pdf):
+        """The field and sampling sums ``(field, energy, density)`` a fold starts from on lanes whose window lies
+        in a periodic family: its closed form (``field``, the mirror lobe's, and zeros on the other lanes)."""
+        inside = family.eligible
         energy0 = density0 = zero_f
-        scanning = searching & has_glossy & pieces_in_window
-        if family is FIND:
-            family = self._family(jac, searching & has_glossy) if has_glossy else None
-        if family is not None and has_glossy:  # lanes inside a periodic family: its closed form, no search
-            inside = family.eligible
-            scanning &= ~inside
-            if want_value and coherent:  # (whole SIMD packets outside every family skip it)
-                field = dr.if_stmt((lobe,), inside, lambda lobe: self._family_field(family, lobe, xi_x, xi_y, k_z),
-                                   lambda lobe: (lobe, zero_s), label="scratch_family_field")
-            elif want_value:  # incoherent: (Σ|S'|², Σ ε) as the scan below sums them
-                field = dr.if_stmt((zero_f,), inside, lambda _: self._family_intensity(family, xi_x, xi_y, k_z),
-                                   lambda _: (zero_s, zero_f), label="scratch_family_intensity")
-            if want_pdf:  # (whole SIMD packets outside every family skip it)
-                def weights(kz0):
-                    w_a, w_b = self._family_weights(family, kz0)
-                    density = self._family_density(family, w_a, w_b, xi0_x, xi0_y, wi, lam0, kz0)
-                    return w_a + w_b, dr.select(inside, density, 0.0)
+        if want_value and self.coherent:  # (whole SIMD packets outside every family skip it)
+            field = dr.if_stmt((q.lobe,), inside, lambda lobe: self._family_field(family, lobe, q.xi_x, q.xi_y, q.k_z),
+                               lambda lobe: (lobe, zero_s), label="scratch_family_field")
+        elif want_value:  # incoherent: (Σ|S'|², Σ ε) as the scan sums them
+            field = dr.if_stmt((zero_f,), inside, lambda _: self._family_intensity(family, q.xi_x, q.xi_y, q.k_z),
+                               lambda _: (zero_s, zero_f), label="scratch_family_intensity")
+        if want_pdf:  # (whole SIMD packets outside every family skip it)
+            def weights(kz0):
+                w_a, w_b = self._family_weights(family, kz0)
+                density = self._family_density(family, w_a, w_b, q.xi0_x, q.xi0_y, wi, q.lam0, kz0)
+                return w_a + w_b, dr.select(inside, density, 0.0)
 
-                energy0, density0 = dr.if_stmt((kz0,), inside, weights, lambda kz0: (zero_f, zero_f),
-                                               label="scratch_family_pdf")
-        # "bounded": Σ_k e_k(ω_i), Σ_k e_k(ω_o), the albedo estimate's segment terms (docs/model.md §4.1)
-        bounded = self.depth_phase == "bounded" and coherent and want_value and has_glossy
-        # nearly parallel overlaps: each piece found is paired with the last RECENT_PIECES found (parallel.py)
-        pairing = self.height_field and self.parallel_overlaps and coherent and want_value and has_glossy
+            energy0, density0 = dr.if_stmt((q.kz0,), inside, weights, lambda kz0: (zero_f, zero_f),
+                                           label="scratch_family_pdf")
+        return field, energy0, density0
+
+    def _piece_terms(self, q: "_Frequencies", jac, wi, wo, wavelength, *, has_glossy, want_value, want_pdf,
+                     bounded, pairing, keep_search):
+        """The fold's body: what one piece found in the window adds to the field (with its crossings and
+        nearly parallel overlaps), to the albedo estimate and to the sampling sums."""
+        spectrum, sigma, coherent = mi.Spectrum, self.sigma, self.coherent
+        xi_x, xi_y, k_z, kz0 = q.xi_x, q.xi_y, q.k_z, q.kz0
 
         def body(segment, piece, state):
             (a, b), energy, density, excess, paired, kept = state
@@ -278,34 +317,20 @@ class Model:
                 weight = sampling.selection_weight(segment, kz0 * segment.depth, sigma, coherent)
                 # (never in place: the inputs of a symbolic branch must stay untouched)
                 energy = energy + weight
-                density = density + weight * self._scratch_density(segment, xi0_x, xi0_y, wi, lam0, kz0)
+                density = density + weight * self._scratch_density(segment, q.xi0_x, q.xi0_y, wi, q.lam0, kz0)
             return (a, b), energy, density, excess, paired, kept
 
-        # (the excess sums, the recent and the kept pieces join the loop state only when they are used)
-        no_pieces = (dr.zeros(mi.UInt32), tuple(dr.zeros(mi.UInt32) for _ in range(RECENT_PIECES)))
-        none_kept = (dr.zeros(mi.UInt32), tuple(dr.zeros(mi.UInt32) for _ in range(REPLAY_PIECES)))
-        state = (field, energy0, density0, (zero_s, zero_s) if bounded else (), no_pieces if pairing else (),
-                 none_kept if keep_search else ())
-        (a, b), energy, density, excess, _, kept = _fold_pieces(self.grid, jac, WINDOW_RADIUS_SIGMAS * sigma, state,
-                                                                body, scanning, found)
+        return body
 
-        value = pdf = None
-        if want_value:
-            if self.height_field and coherent and self.clamp_to_height_field_bound:
-                a, b = self._within_height_field_bound(a, b, sigma)
-            if bounded:  # f / max(1, Â(ω_i), Â(ω_o)): reciprocal, albedo ≤ 1 (docs/model.md §4.1)
-                a, b = self._bounded(a, b, *excess)
-            value = self._value(si, wo, inv_wavelength, lobe, a, b, has_glossy, has_diffuse, active)
-        if want_pdf:
-            q_d, q_s, q_m = self._strategy_weights(si, energy, wi.z, has_glossy, has_diffuse, active)
-            xi0_2 = xi0_x * xi0_x + xi0_y * xi0_y
-            scratch = dr.select(energy > 0.0, density / dr.maximum(energy, 1e-30), 0.0)
-            specular = (q_m * sampling.pdf_mirror(xi0_2, sigma) + q_s * scratch) * wo.z * dr.square(inv_wavelength[0])
-            pdf = dr.select(active, specular + q_d * wo.z * (1.0 / math.pi), 0.0)
-            pdf = dr.select(dr.isfinite(pdf), pdf, 0.0)
-        if keep_search:
-            return value, pdf, (family, *kept)
-        return value, pdf
+    def _pdf(self, si, wo, q: "_Frequencies", energy, density, has_glossy, has_diffuse, active):
+        """The sampling density of ``wo`` from the fold's sums (one-sample MIS of the strategies, docs/model.md §5)."""
+        q_d, q_s, q_m = self._strategy_weights(si, energy, si.wi.z, has_glossy, has_diffuse, active)
+        xi0_2 = q.xi0_x * q.xi0_x + q.xi0_y * q.xi0_y
+        scratch = dr.select(energy > 0.0, density / dr.maximum(energy, 1e-30), 0.0)
+        specular = (q_m * sampling.pdf_mirror(xi0_2, self.sigma) + q_s * scratch) * wo.z \
+            * dr.square(q.inv_wavelength[0])
+        pdf = dr.select(active, specular + q_d * wo.z * (1.0 / math.pi), 0.0)
+        return dr.select(dr.isfinite(pdf), pdf, 0.0)
 
     @staticmethod
     def _within_height_field_bound(a, b, sigma):
@@ -457,6 +482,21 @@ class Model:
                                    pieces_in_window=count > 0, family=family,
                                    found=(count, kept) if replays else None)
         return wo, pdf, value, diffuse
+
+
+class _Frequencies(NamedTuple):
+    """Per lane: ξ (1/µm), k_z (rad/µm) and the mirror lobe per wavelength, 1/λ; the hero wavelength's λ0,
+    κ/D at γ_o = γ_i and ξ (the sampling density's)."""
+
+    inv_wavelength: object
+    xi_x: object
+    xi_y: object
+    k_z: object
+    lobe: object
+    lam0: object
+    kz0: object
+    xi0_x: object
+    xi0_y: object
 
 
 def _fold_pieces(grid, jac, radius, state, body, scanning, found):
