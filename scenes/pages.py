@@ -126,13 +126,13 @@ def _validation_section(validation: dict) -> list[str]:
              "discretisation's ghosting fades as the height map refines, while the parallelogram-shaped "
              "features of scratch–scratch crossings are not reproduced by the model (Fig. 15).", "",
              "Here (`python -m scratch_iridescence.mitsuba_bridge validate OUT`, "
-             "`mitsuba_bridge/validation.py`): the BRDF of one "
+             "`mitsuba_bridge/validation/fig15.py`): the BRDF of one "
              f"coherence area (σ = {validation['sigma_um']:g} µm, δ_c = 30 µm, perfect mirror base) at normal "
              "incidence over the whole plane of outgoing direction cosines "
              f"({validation['plane_samples']}² directions), at 650, 550 and 450 nm. Brute force: the height "
              f"field rasterised at {1e3 * validation['pitch_um']:g} nm over ±25 µm ({int(50 / validation['pitch_um'])}² "
              "pixels) and Fourier-summed pixel by pixel with the exact Gaussian window "
-             "(`mitsuba_bridge/bsdf/reference.py`, the BSDF tests' reference); where scratches cross, the deeper "
+             "(`mitsuba_bridge/validation/reference.py`, the BSDF tests' reference); where scratches cross, the deeper "
              "one sets the height. Plugin: `scratch_diffraction`'s `eval` at one shading point.", "",
              f"![BRDF over the direction-cosine plane, brute force against plugin]({GALLERY_DIR}/validation.png)", "",
              "| configuration | crossing share of the scratched area | plugin vs height field (all / off the mirror "

@@ -11,7 +11,7 @@ compiled kernels never flatter the next:
    transform); then, apart from the render, times loading the object's
    scratch set into the BSDF (building its tables: the disk cache off).  Its
    statistics go to ``<name>.json``, with whether the render read its tables
-   from the disk cache (``mitsuba_bridge/bsdf/disk_cache.py``), as any render
+   from the disk cache (``mitsuba_bridge/bsdf/tables/disk_cache.py``), as any render
    after the first of a set does.
 
 Before the first picture and after the last, a third worker renders Mitsuba's own Cornell box
@@ -106,7 +106,7 @@ def _scratch_statistics(bpy) -> dict:
         began = time.perf_counter()
         scratches = scratch.loads(data)
         settings = obj.scratch_iridescence  # as the render loads it (the mode decides what is built)
-        # the build's own time, not a read of the file the render may have written (bsdf/disk_cache.py)
+        # the build's own time, not a read of the file the render may have written (bsdf/tables/disk_cache.py)
         with mock.patch.dict(os.environ, {"SCRATCH_IRIDESCENCE_CACHE_DIR": "off"}):
             loaded = bsdf.load(scratches, unit_scale=1.0, coherent=bool(settings.coherent),
                                depth_phase=settings.depth_phase, crossings=settings.crossings)

@@ -9,7 +9,7 @@ new examples (failures print a ``@reproduce_failure`` blob to pin them down).
 
 The real libLLVM 15, where installed, serves the LLVM-15 simulations.
 
-The scratch tables' disk cache (``mitsuba_bridge/bsdf/disk_cache.py``) is a fresh
+The scratch tables' disk cache (``mitsuba_bridge/bsdf/tables/disk_cache.py``) is a fresh
 folder per run, inherited by the tests' subprocesses: a run never reads what an
 earlier one wrote, nor writes into the user's cache.
 """

@@ -97,7 +97,7 @@ def test_packages_use_relative_imports_only(package):
 
 def test_gather_and_builder_meet_only_in_the_scene_description():
     # Gathering (Blender -> SceneDescription) and building (SceneDescription -> Mitsuba dict) share no
-    # helpers: invariants such as orthonormal frames live in mitsuba_bridge/scene.py.
+    # helpers: invariants such as orthonormal frames live in mitsuba_bridge/scene/.
     for folder, forbidden in [("addon/render/gather", ("mitsuba_bridge.builder", "mitsuba_bridge.bsdf")),
                               ("mitsuba_bridge/builder", ("addon",))]:
         for path in _python_files(folder):

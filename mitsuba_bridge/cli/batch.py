@@ -3,7 +3,7 @@
 Everything that can be checked before rendering is checked first (arguments,
 output folder and format, scene file, scene contents, memory), each problem
 ends in one line ``error: ...`` and a non-zero exit status, and the output is
-written only once complete (:mod:`mitsuba_bridge.atomic`).
+written only once complete (:mod:`mitsuba_bridge.files.atomic`).
 """
 from __future__ import annotations
 

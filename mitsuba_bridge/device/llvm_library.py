@@ -14,7 +14,7 @@ the user's unsaved work; an exception cannot catch it.  Hence three steps:
   library, it points ``DRJIT_LIBLLVM_PATH`` at it;
 * :func:`llvm_problem` asks Dr.Jit which library it loaded and returns what to
   install when it is missing or older than :data:`MIN_LLVM_MAJOR`;
-  :mod:`mitsuba_bridge.variants` refuses the CPU variant with that message, so
+  :mod:`mitsuba_bridge.device.variants` refuses the CPU variant with that message, so
   no kernel is ever compiled with an unusable LLVM;
 * :func:`probe_problem` then renders a tiny scene with the same library in a
   child process, once per process: a library that passes the version check but

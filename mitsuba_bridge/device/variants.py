@@ -1,6 +1,6 @@
 """Which Mitsuba variant renders: spectral always (diffraction colours need wavelengths), CUDA when present.
 
-The CPU variant is chosen only after :func:`mitsuba_bridge.llvm_library.llvm_problem`
+The CPU variant is chosen only after :func:`mitsuba_bridge.device.llvm_library.llvm_problem`
 found a usable libLLVM: with an old one the first compiled kernel aborts the
 whole process (Blender included), so it is refused here, before any kernel.
 """

@@ -2,7 +2,7 @@
 
 A failed write (full disk, killed process, a bug) never destroys the previous
 good file: the image goes to a temporary file in the same folder, which is
-renamed over the target only once complete (:mod:`mitsuba_bridge.atomic`).
+renamed over the target only once complete (:mod:`mitsuba_bridge.files.atomic`).
 """
 from __future__ import annotations
 

@@ -28,7 +28,7 @@ def export_folder(description: SceneDescription, settings: RenderSettings, folde
     """Write ``description`` into ``folder`` (created if needed); returns the scene file.
 
     The export is built in a temporary folder and swapped in as a whole
-    (:func:`~mitsuba_bridge.atomic.replacing_folder`): a failed re-export leaves
+    (:func:`~mitsuba_bridge.files.atomic.replacing_folder`): a failed re-export leaves
     the previous export intact, never an old ``scene.xml`` beside new scratch
     files.  A Mitsuba variant must be active (transforms are Mitsuba objects
     while building).

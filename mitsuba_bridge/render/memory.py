@@ -6,7 +6,7 @@ size and the schedule:
 
 * **Film:** Mitsuba's image block holds 5 float32 channels per pixel in a
   spectral variant (RGB, alpha, weight) and develops into 4 more (RGBA).
-* **Accumulation** (:mod:`mitsuba_bridge.schedule`): the chunk's float32 image
+* **Accumulation** (:mod:`mitsuba_bridge.render.schedule`): the chunk's float32 image
   and its float64 contribution, the pairwise sums held (at most
   ⌊log2 chunks⌋ + 1 float64 RGBA images), the float64 total and the float32
   running mean.

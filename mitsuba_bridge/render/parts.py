@@ -1,6 +1,6 @@
 """Render parts: one render split over machines (``--chunk K/N``) and merged back bit for bit.
 
-A part renders the contiguous chunks :func:`~mitsuba_bridge.schedule.part_range`
+A part renders the contiguous chunks :func:`~mitsuba_bridge.render.schedule.part_range`
 ``(K, N, chunks)`` of the render's schedule and writes an EXR whose RGBA is the
 mean of its own samples (viewable as it is) and whose extra channels hold the
 exact float64 sums of its summation-tree nodes (each as two uint32 channels,

@@ -5,9 +5,9 @@ memory (one chunk holds ``pixels × chunk spp`` samples in flight).  With
 Mitsuba's independent sampler every chunk is an unbiased estimate, so the
 spp-weighted mean of the chunks is the image one long render gives.
 
-The schedule (:func:`~mitsuba_bridge.schedule.sample_schedule`) depends only on
+The schedule (:func:`~mitsuba_bridge.render.schedule.sample_schedule`) depends only on
 spp, the pixel count and the seed, and the chunks are summed in one fixed order
-(:class:`~mitsuba_bridge.schedule.PairwiseSum`), so the image is the same bit
+(:class:`~mitsuba_bridge.render.schedule.PairwiseSum`), so the image is the same bit
 for bit whatever the machine load.  Time only decides how often a caller shows
 the running mean (:class:`Refresh`).
 """
@@ -58,7 +58,7 @@ class Progress:
     #: when set, ``image`` is this array and the sums are not used.
     shown: np.ndarray | None = None
     #: Why this render's passes are traced again for every chunk instead of replayed from a recording
-    #: (:class:`~mitsuba_bridge.freezing.FrozenRender` gave up: a plugin Dr.Jit cannot record); None
+    #: (:class:`~mitsuba_bridge.render.freezing.FrozenRender` gave up: a plugin Dr.Jit cannot record); None
     #: while they replay or when freezing was not asked for.  Same image either way, only slower.
     traced_because: str | None = None
 
@@ -119,7 +119,7 @@ def render_chunks(scene, chunks: Iterable[Chunk], spp_total: int, *, freeze: boo
     cancel: no work is left behind but, with ``overlap``, the one pass already
     launched.  ``freeze``: record the first chunk of each
     size with ``dr.freeze`` and replay it for the others
-    (:class:`~mitsuba_bridge.freezing.FrozenRender`: the same kernels, so the
+    (:class:`~mitsuba_bridge.render.freezing.FrozenRender`: the same kernels, so the
     same image bit for bit, without tracing the integrator and the Python BSDF
     again for every chunk); a scene that cannot be recorded renders traced, and
     every later :attr:`Progress.traced_because` says why.  ``overlap`` (default: on a

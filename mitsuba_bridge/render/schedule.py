@@ -234,7 +234,7 @@ class PairwiseSum:
     of all chunks equals ``tree_sum(root)`` bit for bit, and :meth:`node_sums`
     gives the nodes a part file stores.  The contributions may be NumPy arrays
     or Dr.Jit arrays (a render keeps them on the device,
-    :func:`~mitsuba_bridge.render.render_chunks`): the sums are then Dr.Jit's
+    :func:`~mitsuba_bridge.render.passes.render_chunks`): the sums are then Dr.Jit's
     float64 additions, the same bits; :meth:`total` and :meth:`node_sums` are
     NumPy arrays either way.
     """

@@ -58,7 +58,7 @@ _ZIP_ERRORS = (zipfile.BadZipFile, zipfile.LargeZipFile, zlib.error, EOFError, O
                struct.error, UnicodeDecodeError, NotImplementedError, RuntimeError, OverflowError,
                KeyError, IndexError)
 # What numpy's header parser raises on a damaged header: its tokenize filter for
-# Python-2 headers, literal_eval and descr_to_dtype (TokenError found by tests/scratch/test_fuzz_files.py).
+# Python-2 headers, literal_eval and descr_to_dtype (TokenError found by tests/bridge/scratch/test_fuzz_files.py).
 _NPY_HEADER_ERRORS = (ValueError, SyntaxError, TypeError, KeyError, IndexError, OverflowError,
                       RecursionError, UnicodeDecodeError, MemoryError, tokenize.TokenError, Warning)
 

@@ -1,6 +1,6 @@
 """Brute-force wave-field reference for the scratch BSDF (docs/model.md §8.1), numpy only (scipy for sparse sums).
 
-Used by the BSDF tests (``tests/bsdf``) and by the numerical validation
+Used by the BSDF tests (``tests/bridge/bsdf``) and by the numerical validation
 (:mod:`mitsuba_bridge.validation`, the supplement's Fig. 15).
 
 The windowed far field ``U(ξ) = Σ w(x) T(x) e^{-2πiξ·x} Δx²`` of an explicit,

@@ -1,5 +1,5 @@
 """Validation table of ``crossings = "height_field"`` (docs/bsdf.md, Crossings): relative L2 error of f_r
-against the brute-force height field for the crossing sets of tests/bsdf/test_crossings.py, worst over
+against the brute-force height field for the crossing sets of tests/bridge/bsdf/heightfield/test_crossings.py, worst over
 450/550/650 nm × incidence 0/40/70°, for the additive model, the pair terms alone (the correction before
 its overlaps of three and more), the height-field correction with them, and the pair terms alone against the
 pairwise inclusion–exclusion of the same raster (what they implement exactly).  With ``--v-grooves``:

@@ -19,7 +19,7 @@ samples per core-second; the best round counts, the machine being shared):
   vertex on the plate then searches three times instead of once, so the difference to ``scratched`` is
   the price of two searches;
 * ``no-vzeroupper``: the scene as exported, its kernels compiled without the ``vzeroupper`` before
-  calls out of a kernel that the add-on asks LLVM for (``mitsuba_bridge/llvm_target.py``; Intel CPUs
+  calls out of a kernel that the add-on asks LLVM for (``mitsuba_bridge/device/llvm_target.py``; Intel CPUs
   with AVX-512 otherwise enter Embree's SSE code at a penalty);
 * ``no-amplitude``: each piece's far-field amplitude (along factor and cross-section, the Faddeeva
   evaluations; coherent sets: the incoherent mode sums intensities instead) replaced by zero, its
@@ -29,7 +29,7 @@ samples per core-second; the best round counts, the machine being shared):
 ``--llvm-widths 16 32`` renders every variant at each SIMD width of Dr.Jit's CPU backend (lanes per
 packet; the backend's own choice is the widest vector register, 16 with AVX-512), the scene loaded anew at
 each (Embree's packet entry point is chosen when the scene is built), through
-``mitsuba_bridge.llvm_target.configure``.  docs/bsdf.md (Performance, "vzeroupper
+``mitsuba_bridge.device.llvm_target.configure``.  docs/bsdf.md (Performance, "vzeroupper
 before calls") has what that showed.
 
 Prints each variant's best samples per core-second and its ratio to ``scratched``, and, when the folder

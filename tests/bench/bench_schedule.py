@@ -1,6 +1,6 @@
 """Benchmark: what the fixed sample schedule costs next to one long ``mi.render`` call.
 
-The scratched plate of tests/bridge/test_scratched.py (3 000 scratches) at
+The scratched plate of tests/bridge/builder/test_scratched.py (3 000 scratches) at
 512² × 64 spp, measured in the same run (the machine is shared, so only the
 ratios mean much):
 

@@ -1,4 +1,4 @@
-"""Benchmark: a scratch BSDF's set-up with its tables built, and read from the disk cache (bsdf/disk_cache.py).
+"""Benchmark: a scratch BSDF's set-up with its tables built, and read from the disk cache (bsdf/tables/disk_cache.py).
 
 Each load runs in a fresh process (as a new Blender session or a ``make paper``
 worker would), alternately: with the cache off (the build), and with a cache

@@ -16,7 +16,7 @@ Targets (issue 14) on the 2-core CPU: stroke → first updated image ≤ 0.2 s,
 ≥ 5 full-resolution 1-spp passes/s, main-thread blocking ≤ 50 ms.
 
 Run: ``.venv/bin/python tests/bench/bench_viewport.py [--moves 50 --strokes 20]``; ``--full-builds``
-rebuilds the whole scratch tables on every stroke (the reference for ``bsdf/incremental.py``),
+rebuilds the whole scratch tables on every stroke (the reference for ``bsdf/tables/incremental.py``),
 ``--crossings height_field`` paints with the height-field crossings (strokes extend the pair list too),
 ``--strip-pixels 0`` renders whole passes instead of strips (the reference for the strips): run
 them back to back and compare.
@@ -90,7 +90,7 @@ def main():
     parser.add_argument("--strokes", type=int, default=20)
     parser.add_argument("--no-freeze", action="store_true", help="trace every pass (no dr.freeze)")
     parser.add_argument("--full-builds", action="store_true",
-                        help="rebuild the whole scratch tables on each stroke (the reference for bsdf/incremental.py)")
+                        help="rebuild the whole scratch tables on each stroke (the reference for bsdf/tables/incremental.py)")
     parser.add_argument("--crossings", default="additive", choices=("additive", "height_field"),
                         help="the plate's Crossings setting (height_field: strokes also extend the crossing pairs)")
     parser.add_argument("--strip-pixels", type=int, default=None,

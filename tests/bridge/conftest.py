@@ -1,7 +1,7 @@
 """Bridge fixtures: the LLVM spectral variant (the CI machine has no GPU) and small scenes built in code.
 
 ``SCRATCH_TEST_VARIANT=cuda_ad_spectral`` runs them on an NVIDIA GPU instead (docs/bsdf.md, GPU), as
-for ``tests/bsdf``.
+for ``tests/bridge/bsdf``.
 """
 import os
 

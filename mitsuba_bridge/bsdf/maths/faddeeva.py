@@ -72,7 +72,7 @@ def real_polynomial_at(coefficients, z: Cx) -> Cx:
     §3.2): the remainder ``b_1 x + a_0 + s b_2`` comes from the real
     recurrence ``b_k = a_k + r b_{k+1} + s b_{k+2}`` (r = 2 Re z, s = -|z|²), two multiply-adds per
     coefficient against four for a complex Horner step.  Accurate here: |z| <= 1 and the degree is
-    small (``tests/bsdf/test_maths.py`` test02 compares the Faddeeva function with scipy's).
+    small (``tests/bridge/bsdf/maths/test_maths.py`` test02 compares the Faddeeva function with scipy's).
     """
     r = 2.0 * z.re
     s = -z.abs2()

@@ -10,7 +10,7 @@ the scratch by its value and slope
 at the centre line (``e^{-a⊥²/2σ²} G(ν⊥ - i a⊥/(2πσ²))``); it drops the
 window's curvature, which costs ≈ 10 % (relative L2 of f_r) on an offset
 2 µm V-groove at σ = 2 µm and up to ≈ 30 % between grating orders
-(tests/bsdf/test_reference.py).  Here each linear piece of the profile has a
+(tests/bridge/bsdf/test_reference.py).  Here each linear piece of the profile has a
 linear phase, so its windowed transform is a partial Gaussian integral at a
 shifted frequency, :func:`.window.window_integral`: the transform is exact for
 any width, at the price of two complex error functions per piece edge.

@@ -33,7 +33,7 @@ where the scan skips its term), and when σ ≥ P.  Otherwise the
 lane scans (:func:`.lookup.for_each_segment`) and gets the scan's values bit
 for bit.  The closed form is the exact sum over the infinite run; the scan
 drops tracks beyond 4σ (e^-8 of the window), so the two differ by that
-truncation, ~1e-4 (tests/bsdf/test_periodic.py).
+truncation, ~1e-4 (tests/bridge/bsdf/test_periodic.py).
 
 **Kinks** (:func:`_end_lines`, and the same functions): where two families meet on a line on which
 every track of one ends and every track of the other begins (a CD's polygonal tracks turn there), a

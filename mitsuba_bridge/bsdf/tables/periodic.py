@@ -47,7 +47,7 @@ LINE_NORMAL_TOLERANCE = 1e-4
 LINE_OFFSET_TOLERANCE = 2 * KINK_TOLERANCE
 #: Smallest |cos| between an end line's normal and the tracks (in the cell and where a lane sees them):
 #: the closed form cuts each run along the line where the scan ends each piece square, and the two
-#: differ by wedges that grow with the angle (~5e-4 relative L2 at 9°, ~1e-3 at 30°, tests/bsdf/test_periodic.py).
+#: differ by wedges that grow with the angle (~5e-4 relative L2 at 9°, ~1e-3 at 30°, tests/bridge/bsdf/test_periodic.py).
 KINK_MIN_COS = 0.98
 #: Families per cell (a CD cell with a chord's kink holds two).
 SLOTS = 2

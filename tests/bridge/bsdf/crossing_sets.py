@@ -1,4 +1,4 @@
-"""Random crossing sets and their brute-force height-field planes, for tests/bsdf/test_crossings.py.
+"""Random crossing sets and their brute-force height-field planes, for tests/bridge/bsdf/heightfield/test_crossings.py.
 
 Whole planes of spatial frequency ξ at one incidence: the true height field
 (the deepest scratch owns a crossing) and the model's sum of transfer functions,

@@ -112,7 +112,7 @@ def test03_frozen_chunks_give_the_traced_image_bit_for_bit(settings, monkeypatch
     assert frozen.tobytes() == traced.tobytes() and np.abs(traced[..., :3]).max() > 0
 
 
-if __name__ == "__main__":  # write the test image for a look: python tests/bsdf/test_render.py out.png
+if __name__ == "__main__":  # write the test image for a look: python tests/bridge/bsdf/test_render.py out.png
     import sys
 
     mi.set_variant("llvm_ad_spectral")

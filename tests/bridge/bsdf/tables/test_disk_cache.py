@@ -1,4 +1,4 @@
-"""The scratch tables' disk cache (mitsuba_bridge/bsdf/disk_cache.py): a new BSDF of a set built before (by
+"""The scratch tables' disk cache (mitsuba_bridge/bsdf/tables/disk_cache.py): a new BSDF of a set built before (by
 another process, here a BSDF that is gone) reads its tables instead of building them, the same to the last
 bit; damaged files, full or read-only folders and a size limit never fail a load."""
 from __future__ import annotations
