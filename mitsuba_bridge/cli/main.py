@@ -5,7 +5,8 @@ Commands
 info FILE...      summary of scratch files (validates them)
 generate OUT      write a random scratch file for a flat UV square
 render FOLDER     render a folder exported from Blender ("Export Mitsuba scene") to EXR or PNG
-                  (--chunk K/N: only part K of N of the samples, for render farms)
+                  (--chunk K/N: only part K of N of the samples, for render farms;
+                  --cluster ADDRESS: every chunk as a task on a Dask cluster)
 merge PART...     combine the parts of one render into its image (bit for bit the whole render)
 validate OUT      the plugin against a brute-force wave field over the direction-cosine plane (figure + numbers)
 """
@@ -15,7 +16,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from . import batch
+from . import batch, farm
 from .. import scratch
 from ..errors import ParameterError
 
@@ -143,7 +144,13 @@ def _main(argv) -> int:
     render.add_argument("--variant", default="auto",
                         help="Mitsuba variant (default auto: cuda_ad_spectral when available, else llvm_ad_spectral)")
     render.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
-    render.set_defaults(run=batch.render_command)
+    render.add_argument("--cluster", metavar="ADDRESS",
+                        help="render the chunks as tasks on a Dask cluster: a scheduler address (tcp://host:8786) or "
+                             "local:N (N worker processes here); the image is the one-machine render, bit for bit")
+    render.add_argument("--chunks-per-task", type=int, metavar="N",
+                        help="with --cluster: chunks per task, a power of two (default 1, grouped only for schedules "
+                             "far longer than the workers)")
+    render.set_defaults(run=farm.render_command)
 
     merge = commands.add_parser("merge", help="combine the parts of one render (render --chunk K/N) into its image")
     merge.add_argument("parts", nargs="+", help="part files (.exr) of the same render, every chunk exactly once")
