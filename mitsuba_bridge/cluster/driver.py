@@ -22,6 +22,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
+import re
 import secrets
 import time
 from dataclasses import dataclass, field
@@ -151,10 +152,12 @@ class Cluster:
             answers = self.client.run(tasks.worker_identity, workers=new, on_error="return")
             for address, answer in sorted(answers.items()):
                 if isinstance(answer, BaseException):
-                    missing = isinstance(answer, ImportError) or "scratch_iridescence" in str(answer)
-                    what = f"cannot run {DISTRIBUTION}" if missing else "failed the software check"
-                    raise ClusterError(f"worker {address} {what} ({_one_line(answer)}): install the same version "
-                                       f"on every worker: pip install '{DISTRIBUTION}[cluster]=={self.identity.version}'")
+                    # Dask wraps what failed to unpickle there: the module's name is all that matters.
+                    missing = re.search(r"No module named '([\w.]+)'", str(answer))
+                    what = (f"cannot import {missing.group(1).split('.')[0]} (No module named '{missing.group(1)}')"
+                            if missing else f"failed the software check ({_one_line(answer)})")
+                    raise ClusterError(f"worker {address} {what}: install the same version on every worker: "
+                                       f"pip install '{DISTRIBUTION}[cluster]=={self.identity.version}'")
                 differences = self.identity.differences(answer)
                 if differences:
                     raise ClusterError(f"worker {address} runs other software than this machine "
