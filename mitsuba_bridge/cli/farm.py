@@ -8,12 +8,13 @@ from __future__ import annotations
 
 import sys
 import time
+from pathlib import Path
 
 from . import batch
 from ..errors import ScratchUserError
 from ..files.images import IMAGE_SUFFIXES, check_output_path, write_image
 
-__all__ = ["render_command", "render_on_cluster"]
+__all__ = ["render_command", "render_on_cluster", "render_frames_command", "export_frames_command"]
 
 
 def render_command(args) -> int:
@@ -80,4 +81,96 @@ def render_on_cluster(args) -> int:
     if result.traced_note:
         print(result.traced_note, file=sys.stderr)
     print(f"wrote {output} ({result.seconds:.1f} s on the cluster)")
+    return 0
+
+
+#: Frames exported per bpy process when rendering an animation on this machine (one process start per batch).
+EXPORT_BATCH = 8
+
+
+def _frames_and_pattern(args, suffixes):
+    from ..files.frames import frame_path, parse_frames
+
+    try:
+        frames = parse_frames(args.frames)
+        first = frame_path(args.output, frames[0])
+        first.parent.mkdir(parents=True, exist_ok=True)  # as Blender makes its output folder
+        first = check_output_path(first, suffixes)
+    except (ValueError, ScratchUserError) as error:
+        raise batch.CommandError(str(error), 2) from None
+    except OSError as error:
+        raise batch.CommandError(f"cannot make the folder of {args.output}: {error}") from None
+    if len(frames) > 1 and "#" not in str(args.output):
+        raise batch.CommandError(f"-o {args.output}: several frames need a # in the name (frame_####{first.suffix})",
+                                 2)
+    return frames
+
+
+def export_frames_command(args) -> int:
+    """``export-frames scene.blend --frames 1-3 -o out/scene_####``: one export folder per frame (pip's bpy)."""
+    from ..folder.blend import export_frames
+
+    frames = _frames_and_pattern(args, ("",))
+    try:
+        export_frames(args.blend, args.frames, args.output)
+    except ScratchUserError as error:
+        raise batch.CommandError(str(error)) from None
+    print(f"exported {len(frames)} frame{'s' * (len(frames) != 1)} of {args.blend}")
+    return 0
+
+
+def render_frames_command(args) -> int:
+    """``render-frames scene.blend --frames 1-240 -o out/frame_####.exr [--cluster ADDRESS]``."""
+    import argparse
+    import shutil
+    import tempfile
+
+    from ..files.frames import frame_path
+    from ..folder.blend import export_frames
+
+    _check_samples(args)
+    frames = _frames_and_pattern(args, IMAGE_SUFFIXES)
+    if args.cluster:
+        return _render_frames_on_cluster(args, frames)
+    started = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="render-frames-") as work:
+        for start in range(0, len(frames), EXPORT_BATCH):
+            group = frames[start:start + EXPORT_BATCH]
+            try:
+                export_frames(args.blend, ",".join(map(str, group)), f"{work}/scene_########")
+            except ScratchUserError as error:
+                raise batch.CommandError(str(error)) from None
+            for frame in group:
+                folder = frame_path(f"{work}/scene_########", frame)
+                batch.render_command(argparse.Namespace(
+                    folder=str(folder), output=str(frame_path(args.output, frame)), spp=args.spp, seed=args.seed,
+                    chunk=None, variant=args.variant, quiet=args.quiet))
+                shutil.rmtree(folder, ignore_errors=True)
+    print(f"rendered {len(frames)} frame{'s' * (len(frames) != 1)} in {time.perf_counter() - started:.1f} s")
+    return 0
+
+
+def _render_frames_on_cluster(args, frames) -> int:
+    from ..files.frames import frame_path
+
+    driver, progress_module, _ = _cluster_modules()
+    from ..cluster.frames import render_frames_on_cluster
+
+    if not Path(args.blend).is_file():
+        raise batch.CommandError(f"{args.blend}: no such .blend file", 2)
+    progress = progress_module.ClusterProgress(0, quiet=args.quiet)
+
+    def write(frame, image):
+        return write_image(frame_path(args.output, frame), image)
+
+    started = time.perf_counter()
+    try:
+        with driver.connect(args.cluster) as cluster:
+            count = render_frames_on_cluster(cluster, args.blend, frames, write, variant=args.variant,
+                                             spp=args.spp, seed=args.seed, progress=progress)
+    except ScratchUserError as error:
+        raise batch.CommandError(str(error)) from None
+    except OSError as error:
+        raise batch.CommandError(f"cannot write a frame: {batch.one_line(error)}") from None
+    print(f"rendered {count} frame{'s' * (count != 1)} on the cluster in {time.perf_counter() - started:.1f} s")
     return 0

@@ -7,6 +7,8 @@ generate OUT      write a random scratch file for a flat UV square
 render FOLDER     render a folder exported from Blender ("Export Mitsuba scene") to EXR or PNG
                   (--chunk K/N: only part K of N of the samples, for render farms;
                   --cluster ADDRESS: every chunk as a task on a Dask cluster)
+render-frames B   render frames of a .blend (--frames 1-240 -o out/frame_####.exr [--cluster ADDRESS])
+export-frames B   export frames of a .blend as scene folders (pip's bpy, no Blender binary)
 merge PART...     combine the parts of one render into its image (bit for bit the whole render)
 validate OUT      the plugin against a brute-force wave field over the direction-cosine plane (figure + numbers)
 """
@@ -151,6 +153,24 @@ def _main(argv) -> int:
                         help="with --cluster: chunks per task, a power of two (default 1, grouped only for schedules "
                              "far longer than the workers)")
     render.set_defaults(run=farm.render_command)
+
+    frames = commands.add_parser("render-frames", help="render frames of a .blend (exported with pip's bpy), here or "
+                                                       "on a Dask cluster")
+    frames.add_argument("blend", help="the .blend file (external files packed when workers share no disk)")
+    frames.add_argument("--frames", required=True, help="frames: 1-240, 1..240, 1,5,10-12, 1-240:2")
+    frames.add_argument("-o", "--output", required=True, help="image per frame: out/frame_####.exr (# = frame number)")
+    frames.add_argument("--spp", type=int, default=None, help="samples per pixel (default: the scene's)")
+    frames.add_argument("--seed", type=int, default=None, help="0 .. 2**32-1 (default: the scene's)")
+    frames.add_argument("--variant", default="auto", help="Mitsuba variant (default auto)")
+    frames.add_argument("--cluster", metavar="ADDRESS", help="a Dask scheduler address or local:N (see render)")
+    frames.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
+    frames.set_defaults(run=farm.render_frames_command)
+
+    exports = commands.add_parser("export-frames", help="export frames of a .blend as scene folders (pip's bpy)")
+    exports.add_argument("blend")
+    exports.add_argument("--frames", required=True, help="frames: 1-240, 1,5,10-12")
+    exports.add_argument("-o", "--output", required=True, help="folder per frame: out/scene_#### (# = frame number)")
+    exports.set_defaults(run=farm.export_frames_command)
 
     merge = commands.add_parser("merge", help="combine the parts of one render (render --chunk K/N) into its image")
     merge.add_argument("parts", nargs="+", help="part files (.exr) of the same render, every chunk exactly once")

@@ -189,24 +189,27 @@ class Cluster:
         return requested, None
 
     # ---- scenes
-    def ship(self, bundle: SceneBundle, workers, progress: ClusterProgress | None = None, *,
-             source=None) -> tasks.SceneRef:
+    def ship(self, bundle: SceneBundle | None, workers, progress: ClusterProgress | None = None, *,
+             digest: str | None = None, size_bytes: int = 0, source=None, what: str = "scene") -> tasks.SceneRef:
         """Store the scene in the cache of every worker that lacks it; nothing is sent to the others.
 
-        ``source`` is a future already holding the bundle on the cluster (a frame exported by a
-        worker): Dask then copies it worker to worker; else this driver sends it.
+        ``source`` is a future already holding the bundle on the cluster (a frame a worker exported, whose
+        ``digest`` and ``size_bytes`` are given instead of ``bundle``): Dask copies it worker to worker.
+        Otherwise this driver sends ``bundle``.
         """
-        have = self.client.run(tasks.has_scene, bundle.digest, workers=list(workers))
+        digest = bundle.digest if bundle is not None else digest
+        size_bytes = bundle.size_bytes if bundle is not None else size_bytes
+        have = self.client.run(tasks.has_scene, digest, workers=list(workers))
         lacking = sorted(address for address, present in have.items() if not present)
         if not lacking:
             if progress:
-                progress.message(f"scene {bundle.digest[:12]} is already on all {len(have)} workers: nothing sent")
-            return tasks.SceneRef(bundle.digest)
+                progress.message(f"{what} {digest[:12]} is already on all {len(have)} workers: nothing sent")
+            return tasks.SceneRef(digest)
         self._send(bundle, lacking, source)
         if progress:
-            progress.message(f"scene {bundle.digest[:12]} ({bundle.size_bytes / 1e6:.2f} MB) sent to "
-                             f"{len(lacking)} of {len(have)} workers")
-        return tasks.SceneRef(bundle.digest)
+            progress.message(f"{what} {digest[:12]} ({size_bytes / 1e6:.2f} MB) sent to {len(lacking)} of "
+                             f"{len(have)} workers")
+        return tasks.SceneRef(digest)
 
     def _send(self, bundle: SceneBundle | None, workers: list, source=None) -> None:
         if source is not None:

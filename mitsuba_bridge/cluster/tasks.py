@@ -22,7 +22,7 @@ from .identity import SoftwareIdentity, software_identity
 from .scenes import SceneBundle, cached_scene, store_bundle
 
 __all__ = ["SceneRef", "SceneFacts", "RenderJob", "TaskResult", "SceneMissing", "WorkerMismatch", "RenderCancelled",
-           "worker_identity", "has_scene", "store_from_memory", "describe_scene", "render_node", "transfer_counts", "THREADS_VARIABLE"]
+           "worker_identity", "has_scene", "store_from_memory", "describe_scene", "render_node", "export_frame", "describe_bundle", "transfer_counts", "THREADS_VARIABLE"]
 
 #: Dr.Jit threads of a worker's renders (``--cluster local:N`` sets it to cores / N); unset: all cores.
 THREADS_VARIABLE = "SCRATCH_IRIDESCENCE_RENDER_THREADS"
@@ -240,3 +240,28 @@ def render_node(job: RenderJob, first: int, stop: int) -> TaskResult:
             else:
                 nodes[(node.level, node.index)] = value
         return TaskResult(nodes, _worker_address(), time.perf_counter() - started, progress.traced_note)
+
+
+def export_frame(blend: SceneRef, blend_name: str, frame: int, identity: SoftwareIdentity) -> SceneBundle:
+    """Export ``frame`` of the cached .blend into this worker's scene cache; returns the folder's bundle
+    (the driver has Dask copy it to the workers that render the frame's chunks)."""
+    import tempfile
+
+    from ..files.frames import frame_path
+    from ..folder.blend import export_frames
+    from .scenes import pack_folder
+
+    _check(identity)
+    folder = scene_folder(blend)
+    with tempfile.TemporaryDirectory(prefix=f"frame{frame}-") as building:
+        pattern = f"{building}/scene_########"
+        export_frames(folder / blend_name, str(frame), pattern)
+        bundle = pack_folder(frame_path(pattern, frame))
+    store_bundle(bundle)
+    return bundle
+
+
+def describe_bundle(bundle: SceneBundle, variant: str, identity: SoftwareIdentity) -> tuple:
+    """(digest, bytes, :class:`SceneFacts`) of an exported frame; runs where the bundle is."""
+    store_bundle(bundle)
+    return bundle.digest, bundle.size_bytes, describe_scene(SceneRef(bundle.digest), variant, identity)
