@@ -30,7 +30,10 @@ __all__ = ["export_frames", "main"]
 
 
 def export_frames(scene, frames, pattern) -> list[Path]:
-    """Export ``scene`` at each of ``frames`` into the folder ``frame_path(pattern, frame)``; returns the folders."""
+    """Export ``scene`` at each of ``frames`` into the folder ``frame_path(pattern, frame)``; returns the folders.
+
+    A ``pattern`` without ``#`` names the folder of a single frame as it is.
+    """
     from ...mitsuba_bridge.files.frames import frame_path
     from ...mitsuba_bridge.folder import export as bridge_export
     from ...mitsuba_bridge.render.activation import activate
@@ -44,7 +47,7 @@ def export_frames(scene, frames, pattern) -> list[Path]:
         description = gather_scene(bpy.context.evaluated_depsgraph_get())
         for warning in description.warnings:
             print(f"warning: frame {frame}: {warning}", file=sys.stderr)
-        folder = frame_path(pattern, frame)
+        folder = frame_path(pattern, frame) if "#" in str(pattern) else Path(pattern)  # one frame: the folder named
         bridge_export.export_folder(description, settings, folder)
         print(f"exported frame {frame} to {folder}", flush=True)
         folders.append(folder)
