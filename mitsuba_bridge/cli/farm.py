@@ -14,7 +14,8 @@ from . import batch
 from ..errors import ScratchUserError
 from ..files.images import IMAGE_SUFFIXES, check_output_path, write_image
 
-__all__ = ["render_command", "render_on_cluster", "render_frames_command", "export_frames_command"]
+__all__ = ["render_command", "render_on_cluster", "render_frames_command", "export_frames_command",
+           "merge_command"]
 
 
 def render_command(args) -> int:
@@ -174,3 +175,20 @@ def _render_frames_on_cluster(args, frames) -> int:
         raise batch.CommandError(f"cannot write a frame: {batch.one_line(error)}") from None
     print(f"rendered {count} frame{'s' * (count != 1)} on the cluster in {time.perf_counter() - started:.1f} s")
     return 0
+
+
+def merge_command(args) -> int:
+    """``merge PART... -o OUT [--frame N]``: a folder among the parts stands for every ``.exr`` in it, and
+    ``--frame`` numbers the ``#`` runs of ``-o`` (job templates cannot list N parts or pad numbers)."""
+    from ..files.frames import frame_path
+
+    parts = []
+    for part in args.parts:
+        path = Path(part)
+        parts += sorted(map(str, path.glob("*.exr"))) if path.is_dir() else [part]
+    if not parts:
+        raise batch.CommandError(f"no parts (.exr files) in {', '.join(args.parts)}")
+    args.parts = parts
+    if getattr(args, "frame", None) is not None:
+        args.output = str(frame_path(args.output, args.frame))
+    return batch.merge_command(args)

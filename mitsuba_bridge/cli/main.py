@@ -173,9 +173,11 @@ def _main(argv) -> int:
     exports.set_defaults(run=farm.export_frames_command)
 
     merge = commands.add_parser("merge", help="combine the parts of one render (render --chunk K/N) into its image")
-    merge.add_argument("parts", nargs="+", help="part files (.exr) of the same render, every chunk exactly once")
+    merge.add_argument("parts", nargs="+", help="part files (.exr) of the same render, every chunk exactly once "
+                                                "(a folder: every .exr in it)")
     merge.add_argument("-o", "--output", required=True, help="output .exr or .png")
-    merge.set_defaults(run=batch.merge_command)
+    merge.add_argument("--frame", type=int, help="frame number for the # runs of -o (frame_####.exr)")
+    merge.set_defaults(run=farm.merge_command)
 
     validate = commands.add_parser("validate", help="compare the plugin with a brute-force wave field (needs "
                                                     "scipy and matplotlib: the dev extras)")
