@@ -10,10 +10,10 @@ Blender with the extension enabled on a ``--factory-startup`` command line::
     # a Blender with the extension installed: export the open file's frame 7, or run any bridge command
     blender -b --factory-startup --addons bl_ext.user_default.scratch_iridescence shot.blend \\
         --python-expr "import bl_ext.user_default.scratch_iridescence.addon.render.frames as f; f.main()" \\
-        -- export 7 -o /shared/job/scene_####
+        -- export 7 -o /mnt/render/job/scene_####
     blender -b --factory-startup --addons bl_ext.user_default.scratch_iridescence \\
         --python-expr "import bl_ext.user_default.scratch_iridescence.addon.render.frames as f; f.main()" \\
-        -- render /shared/job/scene_0007 -o /shared/job/part_1.exr --chunk 1/4
+        -- render /mnt/render/job/scene_0007 -o /mnt/render/job/part_1.exr --chunk 1/4
 
 Inside Blender the arguments after ``--`` are read, and Blender exits with the
 command's status (before loading a .blend named later on its command line).

@@ -1,0 +1,168 @@
+"""Benchmark: rendering over Dask (``render --cluster``) against one process, on this machine.
+
+1. **Overhead**: the exported scratched plate (3 000 scratches, the one of bench_schedule.py) rendered by
+   ``render FOLDER`` in one process and by ``render FOLDER --cluster local:2`` (two worker processes of one
+   render thread each, which share the machine's cores), each a fresh command (wall time: start, load,
+   render, write), alternately, with Dr.Jit's kernel cache warm for both.  Target: the cluster's wall time
+   within 1.15 x the one process's for a render of 30 s or more; the images must be the same bits.
+2. **Per-task overhead**: 400 empty tasks through a two-worker LocalCluster (submit, run, result),
+   per task and worker.
+3. **Scene bytes per worker**: a fresh scene cache, one render, then the same render again.
+4. **Scheduling at 64 workers**: 64 worker processes on this machine; each task sleeps a fixed time
+   standing in for a chunk and returns a chunk-sized image, which the driver adds as the renders do
+   (:class:`NodeReducer`).  Efficiency = ideal time (tasks x sleep / 64) / wall time; target >= 90 %.
+
+The machine is shared with other sessions: compare the ratios of one run, not the absolute times.
+
+Run: ``.venv/bin/python tests/bench/bench_cluster.py [--spp 384] [--rounds 1] [--skip-64]``
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "tests" / "bridge"))
+sys.path.insert(0, str(ROOT / "tests" / "bridge" / "builder"))
+
+
+def export_plate(folder: Path, size: int) -> Path:
+    from scratch_iridescence.mitsuba_bridge import scene as S
+    from scratch_iridescence.mitsuba_bridge import scratch
+    from scratch_iridescence.mitsuba_bridge.folder import export
+    from scratch_iridescence.mitsuba_bridge.render.activation import activate
+    from test_scratched import metal, plate_scene
+
+    activate("llvm_ad_spectral")
+    scratches = scratch.random_scratches(3000, seed=5, width=scratch.Gaussian(4e-6, 1.3e-6), length=(0.2, 0.6),
+                                         depth=scratch.Gaussian(250e-9, 80e-9), depth_variation=(1.1, 0.04))
+    description = plate_scene(metal(scratches))
+    description = S.SceneDescription(film=S.Film(size, size), camera=description.camera, shapes=description.shapes,
+                                     materials=description.materials, world=description.world)
+    export.export_folder(description, S.RenderSettings(), folder)
+    return folder
+
+
+def command(folder, output, spp, *extra) -> float:
+    start = time.perf_counter()
+    subprocess.run([sys.executable, "-m", "scratch_iridescence.mitsuba_bridge", "render", str(folder), "-o",
+                    str(output), "--spp", str(spp), "--variant", "llvm_ad_spectral", "-q", *extra], check=True,
+                   capture_output=True)
+    return time.perf_counter() - start
+
+
+def overhead(folder: Path, work: Path, spp: int, rounds: int) -> None:
+    command(folder, work / "warm.exr", 4)  # kernels of this scene compiled once (both runs then find them cached)
+    command(folder, work / "warm2.exr", 4, "--cluster", "local:2")
+    ones, clusters = [], []
+    for _ in range(rounds):
+        ones.append(command(folder, work / "one.exr", spp))
+        clusters.append(command(folder, work / "cluster.exr", spp, "--cluster", "local:2"))
+    same = (work / "one.exr").read_bytes() == (work / "cluster.exr").read_bytes()
+    print(f"1. overhead: one process {min(ones):.1f} s, --cluster local:2 {min(clusters):.1f} s "
+          f"(best of {rounds}): {min(clusters) / min(ones):.3f} x (target <= 1.15); same bits: {same}")
+
+
+def noop(value):
+    return value
+
+
+def per_task_overhead(count: int = 400) -> None:
+    from distributed import Client, LocalCluster, wait
+
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
+            Client(cluster) as client:
+        wait([client.submit(noop, i, pure=False) for i in range(20)])
+        start = time.perf_counter()
+        futures = [client.submit(noop, i, pure=False) for i in range(count)]
+        client.gather(futures)
+        seconds = time.perf_counter() - start
+    print(f"2. per-task overhead: {count} empty tasks on 2 workers in {seconds:.2f} s: "
+          f"{1e3 * seconds * 2 / count:.1f} ms per task and worker")
+
+
+def scene_bytes(folder: Path, spp: int) -> None:
+    os.environ["SCRATCH_IRIDESCENCE_SCENE_CACHE_DIR"] = tempfile.mkdtemp(prefix="bench-scene-cache-")
+    from distributed import Client, LocalCluster
+
+    from scratch_iridescence.mitsuba_bridge.cluster import scenes, tasks
+    from scratch_iridescence.mitsuba_bridge.cluster.driver import Cluster
+    from scratch_iridescence.mitsuba_bridge.cluster.identity import software_identity
+
+    bundle = scenes.pack_folder(folder)
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as local, \
+            Client(local) as client:
+        cluster = Cluster(client, software_identity())
+        received = []
+        for _ in range(2):
+            cluster.render(bundle, variant="llvm_ad_spectral", spp=spp, seed=0)
+            received.append({w: c["bytes"] for w, c in client.run(tasks.transfer_counts).items()})
+    first = sorted(received[0].values())
+    second = [received[1][w] - received[0][w] for w in sorted(received[0])]
+    print(f"3. scene bytes per worker: bundle {bundle.size_bytes / 1e6:.2f} MB; first render {first}, "
+          f"repeated render {second}")
+
+
+def sleeping_chunk(index: int, seconds: float, pixels: int):
+    import time as clock
+
+    import numpy as np
+
+    clock.sleep(seconds)
+    return index, np.full((pixels, 4), index, np.float32)
+
+
+def sixty_four_workers(workers: int, seconds: float, per_worker: int, pixels: int) -> None:
+    import numpy as np
+    from distributed import Client, LocalCluster, as_completed, wait
+
+    from scratch_iridescence.mitsuba_bridge.cluster.reduce import NodeReducer
+    from scratch_iridescence.mitsuba_bridge.render.schedule import Node
+
+    started = time.perf_counter()
+    with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
+                      memory_limit="300MB") as cluster, Client(cluster) as client:
+        client.wait_for_workers(workers, timeout=600)
+        up = time.perf_counter() - started
+        wait([client.submit(noop, i, pure=False) for i in range(workers)])
+        count = workers * per_worker
+        reducer = NodeReducer(count)
+        start = time.perf_counter()
+        futures = [client.submit(sleeping_chunk, i, seconds, pixels, pure=False) for i in range(count)]
+        for future in as_completed(futures):
+            index, image = future.result()
+            future.release()
+            reducer.add(Node(0, index), image.astype(np.float64))
+        wall = time.perf_counter() - start
+    ideal = count * seconds / workers
+    print(f"4. {workers} worker processes (started in {up:.0f} s): {count} tasks of {seconds:.1f} s sleep + a "
+          f"{pixels * 16 / 1e6:.2f} MB image each in {wall:.1f} s, ideal {ideal:.1f} s: efficiency "
+          f"{100 * ideal / wall:.1f} % (target >= 90 %)")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--size", type=int, default=512)
+    parser.add_argument("--spp", type=int, default=384, help="of the overhead render (30 s or more in one process)")
+    parser.add_argument("--rounds", type=int, default=1)
+    parser.add_argument("--workers", type=int, default=64)
+    parser.add_argument("--sleep", type=float, default=2.0, help="seconds per simulated chunk")
+    parser.add_argument("--skip-64", action="store_true")
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as work:
+        work = Path(work)
+        folder = export_plate(work / "plate", args.size)
+        overhead(folder, work, args.spp, args.rounds)
+        per_task_overhead()
+        scene_bytes(folder, 8)
+    if not args.skip_64:
+        sixty_four_workers(args.workers, args.sleep, 8, 128 * 96)
+
+
+if __name__ == "__main__":
+    main()
