@@ -22,12 +22,12 @@ from __future__ import annotations
 import io
 import os
 import shutil
-import sys
 import tempfile
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
 
+from ..files.places import entry_files, user_cache_folder
 from ..folder.export import EXPORTED_ENTRIES, SCENE_FILE
 from ..render.parts import scene_fingerprint
 
@@ -74,14 +74,7 @@ def pack_folder(folder) -> SceneBundle:
     if not (folder / SCENE_FILE).is_file():
         raise FileNotFoundError(f"{folder / SCENE_FILE}: no such scene file (expected an exported folder holding "
                                 f"{SCENE_FILE})")
-    files = []
-    for name in EXPORTED_ENTRIES:
-        path = folder / name
-        if path.is_dir():
-            files += sorted(p for p in path.rglob("*") if p.is_file())
-        elif path.is_file():
-            files.append(path)
-    return SceneBundle(scene_fingerprint(folder, EXPORTED_ENTRIES), _zip(folder, files))
+    return SceneBundle(scene_fingerprint(folder, EXPORTED_ENTRIES), _zip(folder, entry_files(folder, EXPORTED_ENTRIES)))
 
 
 def pack_file(path) -> SceneBundle:
@@ -96,15 +89,7 @@ def pack_file(path) -> SceneBundle:
 def cache_directory() -> Path:
     """The worker's scene cache: ``SCRATCH_IRIDESCENCE_SCENE_CACHE_DIR``, else the platform's cache folder."""
     chosen = os.environ.get("SCRATCH_IRIDESCENCE_SCENE_CACHE_DIR", "")
-    if chosen:
-        return Path(chosen)
-    if sys.platform == "win32":
-        base = Path(os.environ.get("LOCALAPPDATA") or Path.home() / "AppData" / "Local")
-    elif sys.platform == "darwin":
-        base = Path.home() / "Library" / "Caches"
-    else:
-        base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
-    return base / "scratch-iridescence" / "scenes"
+    return Path(chosen) if chosen else user_cache_folder("scenes")
 
 
 def cached_scene(digest: str) -> Path | None:

@@ -34,7 +34,6 @@ import hashlib
 import json
 import logging
 import os
-import sys
 import tempfile
 import threading
 import time
@@ -65,13 +64,9 @@ def directory() -> Path | None:
         return None
     if chosen:
         return Path(chosen)
-    if sys.platform == "win32":
-        base = Path(os.environ.get("LOCALAPPDATA") or Path.home() / "AppData" / "Local")
-    elif sys.platform == "darwin":
-        base = Path.home() / "Library" / "Caches"
-    else:
-        base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
-    return base / "scratch-iridescence" / "tables"
+    from ...files.places import user_cache_folder
+
+    return user_cache_folder("tables")
 
 
 def limit_bytes() -> int:
