@@ -239,9 +239,9 @@ class Cluster:
         except (OSError, RuntimeError, ValueError, MemoryError) as error:
             raise ClusterError(f"a worker failed: {_one_line(error)}") from None
         except Exception as error:  # KilledWorker: the task took down every worker it ran on
-            if type(error).__name__ == "KilledWorker":
-                raise ClusterError(f"a task was lost with {error.args[-1] if error.args else 'its'} workers "
-                                   f"each time it ran (Dask's allowed-failures): {error}") from None
+            if type(error).__name__ == "KilledWorker":  # distributed.scheduler.KilledWorker
+                raise ClusterError(f"a task was lost with its worker every time it ran, as often as Dask's "
+                                   f"allowed-failures permits: {_one_line(error)}") from None
             raise
 
     # ---- rendering
@@ -283,9 +283,11 @@ class Cluster:
         return futures
 
     def resubmit(self, frame: _Frame, run: range, resources: dict | None, missing: tasks.SceneMissing,
-                 bundle: SceneBundle | None, source=None):
+                 bundle: SceneBundle | None, source=None, progress: ClusterProgress | None = None):
         """A task whose worker lacked the scene (it joined late): send the scene there, then the task again."""
         self._send(bundle, [missing.worker], source)
+        if progress is not None:
+            progress.message(f"worker {missing.worker} joined without scene {missing.digest[:12]}: sent it there")
         return self.client.submit(tasks.render_node, frame.job, run.start, run.stop, resources=resources,
                                   priority=frame.priority, pure=False,
                                   key=f"scratch-chunks-{frame.label}-{run.start}-{secrets.token_hex(4)}")
@@ -323,7 +325,8 @@ class Cluster:
             for future in queue:
                 frame_, run = futures.pop(future)
                 if future.status == "error" and isinstance(future.exception(), tasks.SceneMissing):
-                    retry = self.resubmit(frame_, run, resources, future.exception(), folder_bundle)
+                    retry = self.resubmit(frame_, run, resources, future.exception(), folder_bundle,
+                                          progress=progress)
                     futures[retry] = (frame_, run)
                     queue.add(retry)
                     continue

@@ -88,7 +88,8 @@ def render_frames_on_cluster(cluster: Cluster, blend, frames: list[int], write: 
                 continue
             frame, run, item = renders.pop(future)
             if future.status == "error" and isinstance(future.exception(), tasks.SceneMissing):
-                retry = cluster.resubmit(frame, run, resources, future.exception(), None, source=item.export)
+                retry = cluster.resubmit(frame, run, resources, future.exception(), None, source=item.export,
+                                         progress=progress)
                 renders[retry] = (frame, run, item)
                 queue.add(retry)
                 continue

@@ -44,12 +44,15 @@ def scheduler(tmp_path_factory):
     process.wait(timeout=30)
 
 
-def worker(scheduler, name, *extra):
-    """A ``dask worker`` process (the caller stops it), registered before this returns."""
+def worker(scheduler, name, *extra, wait=True, env=None):
+    """A ``dask worker`` process (the caller stops it), registered before this returns (unless ``wait`` is False)."""
     address, folder, client = scheduler
     count = len(client.scheduler_info(n_workers=-1)["workers"])
-    process = _start(["worker", address, "--nthreads", "1", "--no-dashboard", "--name", name, *extra], folder, name)
-    client.wait_for_workers(count + 1, timeout=60)
+    log = open(folder / f"{name}.log", "w")
+    process = subprocess.Popen([DASK, "worker", address, "--nthreads", "1", "--no-dashboard", "--name", name, *extra],
+                               cwd=folder, stdout=log, stderr=subprocess.STDOUT, env=env)
+    if wait:
+        client.wait_for_workers(count + 1, timeout=60)
     return process
 
 
@@ -129,3 +132,26 @@ def test03_ctrl_c_cancels_the_render_on_the_cluster(scheduler, workers, tmp_path
             break
         time.sleep(0.5)
     assert not left and not any(client.processing().values())
+
+
+def test04_a_worker_that_joins_mid_render_without_the_scene_gets_it_and_renders_the_same_bits(scheduler, workers,
+                                                                                             tmp_path):
+    folder = export_scene(tmp_path / "big", film=(128, 96), light=(0.5, 1.0, 1.0))  # chunks of seconds each
+    reference = one_process_render(folder, tmp_path / "one.exr", 4096, 2)
+    process = subprocess.Popen([sys.executable, "-m", "scratch_iridescence.mitsuba_bridge", "render", str(folder),
+                                "-o", str(tmp_path / "out.exr"), "--cluster", scheduler[0], "--variant", VARIANT,
+                                "--spp", "4096", "--seed", "2"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                               text=True)
+    for line in process.stdout:
+        if "tasks on 2 workers" in line:
+            break
+    # Its own, empty scene cache: as a machine that joins the cluster while the render runs.
+    late = worker(scheduler, "late", wait=False,
+                  env={**os.environ, "SCRATCH_IRIDESCENCE_SCENE_CACHE_DIR": str(tmp_path / "late-cache")})
+    try:
+        out, err = process.communicate(timeout=900)
+    finally:
+        stop(scheduler, late)
+    assert process.returncode == 0, err
+    assert "joined without scene" in out, out  # the late worker was given a task, and the scene with it
+    assert read_exr(tmp_path / "out.exr").tobytes() == reference.tobytes()
