@@ -96,14 +96,15 @@ def _frames_and_pattern(args, suffixes):
         frames = parse_frames(args.frames)
         first = frame_path(args.output, frames[0])
         first.parent.mkdir(parents=True, exist_ok=True)  # as Blender makes its output folder
-        first = check_output_path(first, suffixes)
+        if suffixes is not None:  # images; export folders may exist already (a re-export replaces them)
+            first = check_output_path(first, suffixes)
     except (ValueError, ScratchUserError) as error:
         raise batch.CommandError(str(error), 2) from None
     except OSError as error:
         raise batch.CommandError(f"cannot make the folder of {args.output}: {error}") from None
     if len(frames) > 1 and "#" not in str(args.output):
-        raise batch.CommandError(f"-o {args.output}: several frames need a # in the name (frame_####{first.suffix})",
-                                 2)
+        raise batch.CommandError(f"-o {args.output}: several frames need a # in the name "
+                                 f"(frame_####{first.suffix})", 2)
     return frames
 
 
@@ -111,7 +112,7 @@ def export_frames_command(args) -> int:
     """``export-frames scene.blend --frames 1-3 -o out/scene_####``: one export folder per frame (pip's bpy)."""
     from ..folder.blend import export_frames
 
-    frames = _frames_and_pattern(args, ("",))
+    frames = _frames_and_pattern(args, None)
     try:
         export_frames(args.blend, args.frames, args.output)
     except ScratchUserError as error:

@@ -56,13 +56,15 @@ def render_frames_on_cluster(cluster: Cluster, blend, frames: list[int], write: 
     written = chunks_written = 0
     queue = as_completed()
     total = len(frames)
+    order = {frame: number for number, frame in enumerate(frames)}
 
     def export_next():
         while waiting and len(exports) + len(frames_left) < window:
             frame = waiting.pop(0)
-            priority = total - frames.index(frame)  # earlier frames first
+            priority = total - order[frame]  # earlier frames first
             export = cluster.client.submit(tasks.export_frame, blend_ref, Path(blend).name, frame, cluster.identity,
-                                           priority=priority, pure=False, key=f"scratch-export-{frame}-{secrets.token_hex(4)}")
+                                           priority=priority, pure=False,
+                                           key=f"scratch-export-{frame}-{secrets.token_hex(4)}")
             described = cluster.client.submit(tasks.describe_bundle, export, variant, cluster.identity,
                                               resources=resources, priority=priority, pure=False,
                                               key=f"scratch-describe-{frame}-{secrets.token_hex(4)}")
@@ -78,7 +80,7 @@ def render_frames_on_cluster(cluster: Cluster, blend, frames: list[int], write: 
                 scene = cluster.ship(None, cluster.workers(), progress, digest=digest, size_bytes=size_bytes,
                                      source=item.export, what=f"frame {item.frame}")
                 frame = cluster.frame(f"frame{item.frame}", scene, facts, variant, spp, seed, len(workers),
-                                      priority=total - frames.index(item.frame))
+                                      priority=total - order[item.frame])
                 frames_left[item.frame] = (frame, item)
                 if progress is not None:
                     progress.grow(frame.job.chunk_count)

@@ -22,7 +22,8 @@ from .identity import SoftwareIdentity, software_identity
 from .scenes import SceneBundle, cached_scene, store_bundle
 
 __all__ = ["SceneRef", "SceneFacts", "RenderJob", "TaskResult", "SceneMissing", "WorkerMismatch", "RenderCancelled",
-           "worker_identity", "has_scene", "store_from_memory", "describe_scene", "render_node", "export_frame", "describe_bundle", "transfer_counts", "THREADS_VARIABLE"]
+           "worker_identity", "has_scene", "store_from_memory", "describe_scene", "render_node", "export_frame",
+           "describe_bundle", "transfer_counts", "THREADS_VARIABLE"]
 
 #: Dr.Jit threads of a worker's renders (``--cluster local:N`` sets it to cores / N); unset: all cores.
 THREADS_VARIABLE = "SCRATCH_IRIDESCENCE_RENDER_THREADS"

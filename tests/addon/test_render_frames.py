@@ -58,7 +58,8 @@ def test03_bad_frames_and_files_are_one_line_errors(blend, tmp_path):
         assert result.returncode in (1, 2) and "\n" not in error and error.startswith("error: "), error
         return error
 
-    assert "expected numbers and ranges" in refused("render-frames", blend, "--frames", "1-x", "-o", tmp_path / "f_#.exr")
+    assert "expected numbers and ranges" in refused("render-frames", blend, "--frames", "1-x", "-o",
+                                                    tmp_path / "f_#.exr")
     assert "need a # in the name" in refused("render-frames", blend, "--frames", "1-2", "-o", tmp_path / "f.exr")
     assert "no such .blend file" in refused("render-frames", tmp_path / "none.blend", "--frames", "1", "-o",
                                             tmp_path / "f_#.exr")
