@@ -108,3 +108,32 @@ def test07_one_render_takes_one_kind_of_worker(requested, workers, expected):
 def test08_a_render_that_would_mix_schedules_is_refused(requested, workers, message):
     with pytest.raises(ClusterError, match=message.replace("(", r"\(").replace(")", r"\)")):
         Cluster.choose_variant(None, requested, workers)
+
+
+class _Stream:
+    def __init__(self, tty):
+        self.text, self.tty = "", tty
+
+    def write(self, text):
+        self.text += text
+
+    def flush(self):
+        pass
+
+    def isatty(self):
+        return self.tty
+
+
+def test09_progress_is_a_line_per_update_in_a_log_and_one_redrawn_bar_on_a_terminal():
+    from scratch_iridescence.mitsuba_bridge.cluster.progress import ClusterProgress
+
+    log, terminal = _Stream(False), _Stream(True)
+    for stream in (log, terminal):
+        progress = ClusterProgress(4, stream=stream, interval_s=0.0)
+        for done in range(1, 5):
+            progress.update(done)
+        progress.message("wrote out.exr")
+    assert [line.split()[0] for line in log.text.splitlines()[:4]] == ["1/4", "2/4", "3/4", "4/4"]
+    assert log.text.count("\r") == 0 and log.text.splitlines()[-1] == "wrote out.exr"
+    assert terminal.text.count("\r") == 4 and terminal.text.count("\n") == 2  # the bar's end, the message
+    assert "[##############################] " in terminal.text and "100.0 %" in terminal.text
