@@ -132,6 +132,7 @@ class Cluster:
         self.cancel_event = f"scratch-iridescence-cancel-{secrets.token_hex(6)}"
         self.scene_bytes_sent = 0  #: bundle bytes this driver sent (scatter) so far
         self._checked: set[str] = set()
+        self._warming: list = []
 
     # ---- workers
     def workers(self) -> dict:
@@ -224,10 +225,18 @@ class Cluster:
             if source is None:
                 held.release()
 
-    def describe(self, scene: tasks.SceneRef, variant: str, resources: dict | None) -> tasks.SceneFacts:
-        future = self.client.submit(tasks.describe_scene, scene, variant, self.identity, resources=resources,
-                                    pure=False, key=f"scratch-describe-{secrets.token_hex(6)}")
-        return self._result(future)
+    def describe(self, scene: tasks.SceneRef, variant: str, resources: dict | None, workers=()) -> tasks.SceneFacts:
+        """The scene's facts from the first of ``workers`` to load it: every one of them loads it at once
+        (each keeps it for its chunks), so no worker loads it later on the render's critical path."""
+        from distributed import as_completed
+
+        futures = [self.client.submit(tasks.describe_scene, scene, variant, self.identity, resources=resources,
+                                      pure=False, workers=[address] if address else None,
+                                      key=f"scratch-describe-{secrets.token_hex(6)}")
+                   for address in (list(workers) or [None])]
+        first = next(as_completed(futures))
+        self._warming = futures  # the others finish loading meanwhile; released with the render
+        return self._result(first)
 
     def _result(self, future):
         try:
@@ -312,7 +321,8 @@ class Cluster:
         workers = self.check_workers()
         variant, resources = self.choose_variant(variant, workers)
         scene = self.ship(folder_bundle, workers, progress)
-        facts = self.describe(scene, variant, resources)
+        facts = self.describe(scene, variant, resources, [a for a, r in workers.items()
+                                                          if resources is None or r.get(GPU_RESOURCE, 0) >= 1])
         frame = self.frame("frame", scene, facts, variant, spp, seed, len(workers), chunks_per_task=chunks_per_task)
         if on_planned is not None:
             on_planned(frame, len(workers))
@@ -339,9 +349,13 @@ class Cluster:
                     progress.update(frame_.reducer.chunks_done)
         except KeyboardInterrupt:
             cancelled = self.cancel(list(futures))
+            with contextlib.suppress(Exception):
+                self.client.cancel(self._warming, force=True)
             if progress is not None:
                 progress.message(f"cancelled {cancelled} task(s) on the cluster")
             raise
+        finally:
+            self._warming = []
         image = (frame.reducer.total() / frame.job.spp).astype(np.float32)
         return RenderedImage(image, facts.variant, frame.job.chunk_count, len(frame.runs),
                              time.perf_counter() - started, frame.traced_note)

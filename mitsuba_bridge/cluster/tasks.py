@@ -230,7 +230,10 @@ def render_node(job: RenderJob, first: int, stop: int) -> TaskResult:
         from ..render.memory import check_memory
         check_memory(plan.width, plan.height, selected)
         progress = None
-        for progress in render_chunks(scene, selected, sum(chunk.spp for chunk in selected)):
+        # A single chunk is traced: recording it (dr.freeze) would cost more than it saves, and both give the
+        # same bits (the same kernels; docs/rendering.md, How it works).
+        for progress in render_chunks(scene, selected, sum(chunk.spp for chunk in selected),
+                                      freeze=len(selected) > 1):
             if progress.index < len(selected) and _cancelled(job.cancel_event):
                 raise RenderCancelled(f"cancelled after {progress.index} of {len(selected)} chunks")
         nodes = {}
