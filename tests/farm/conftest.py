@@ -9,9 +9,7 @@ import pytest
 
 pytest.importorskip("bpy")
 
-HERE = Path(__file__).resolve().parent
-ROOT = HERE.parents[1]
-VARIANT = "llvm_ad_spectral"
+from farm_paths import HERE, ROOT, VARIANT  # noqa: E402
 
 
 @pytest.fixture(scope="session")

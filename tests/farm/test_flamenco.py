@@ -10,7 +10,7 @@ import sys
 
 import pytest
 
-from conftest import HERE, ROOT, VARIANT
+from farm_paths import HERE, ROOT, VARIANT
 from scratch_iridescence.mitsuba_bridge.files.exr import read_exr
 
 NODE = shutil.which("node")

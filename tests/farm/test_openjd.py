@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import ROOT, VARIANT
+from farm_paths import ROOT, VARIANT
 from scratch_iridescence.mitsuba_bridge.files.exr import read_exr
 
 OPENJD = shutil.which("openjd", path=str(Path(sys.executable).parent)) or shutil.which("openjd")

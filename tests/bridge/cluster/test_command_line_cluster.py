@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import VARIANT, export_scene, one_process_render
+from cluster_scenes import VARIANT, export_scene, one_process_render
 from scratch_iridescence.mitsuba_bridge.files.exr import read_exr
 
 pytestmark = pytest.mark.slow

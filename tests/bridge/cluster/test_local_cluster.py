@@ -7,7 +7,7 @@ import time
 
 import pytest
 
-from conftest import VARIANT, export_scene, one_process_render, worker_sys_path
+from cluster_scenes import VARIANT, export_scene, one_process_render, worker_sys_path
 from scratch_iridescence.mitsuba_bridge.cluster import scenes, tasks
 from scratch_iridescence.mitsuba_bridge.cluster.driver import Cluster
 from scratch_iridescence.mitsuba_bridge.cluster.identity import software_identity
