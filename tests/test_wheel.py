@@ -43,6 +43,7 @@ def test01_the_wheel_holds_every_module_of_the_package_and_its_console_script(wh
     assert "Provides-Extra: cluster" in metadata and "distributed==2026.8.0" in metadata
 
 
+@pytest.mark.slow  # installs the wheel and renders twice in fresh processes
 def test02_its_console_script_renders_what_this_checkout_renders(wheel, tmp_path):
     site = tmp_path / "site"
     subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", "--disable-pip-version-check", "--no-deps",
