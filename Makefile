@@ -86,7 +86,7 @@ demo: setup
 # Builds every reproduced figure of the paper (scenes/fig*.py) with the add-on's operators, renders
 # each in a fresh process through the engine into out/paper/ (EXR, PNG, .blend, statistics), runs the
 # numerical validation and writes docs/gallery.md, docs/benchmarks.md and docs/gallery/*.png.
-# About 16 minutes on the 2-core development machine (docs/gallery.md lists each picture's time).
+# docs/gallery.md says how long it takes and lists each picture's time.
 paper: setup
 	@mkdir -p out/paper
 	$(PY) -m scratch_iridescence.scenes.paper --output out/paper --docs docs

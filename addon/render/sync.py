@@ -35,8 +35,9 @@ import numpy as np
 
 from ...mitsuba_bridge.render.session import Change, Update
 from ...mitsuba_bridge.scratch import ScratchFormatError, ScratchSet
+from ..geometry import units
 from ..storage import has_scratches, read_scratches, scratch_token
-from .gather import GEOMETRY_TYPES, Warnings, gather_settings, scratched_metal
+from .gather import GEOMETRY_TYPES, Warnings, gather_settings, renderable_instances, scratched_metal
 from .gather.lights import gather_light
 from .gather.materials import gather_material
 from .gather.world import gather_world
@@ -88,7 +89,7 @@ def settings_key(scene) -> tuple:
     """Everything of the scene's settings that needs a new session when it changes."""
     render = scene.scratch_iridescence
     return (gather_settings(scene), render.film_filter, bool(scene.render.film_transparent),
-            float(scene.unit_settings.scale_length), int(render.viewport_samples),
+            units.metres_per_unit(scene), int(render.viewport_samples),
             int(render.viewport_start_divisor), bool(render.viewport_freeze))
 
 
@@ -114,14 +115,11 @@ def _object_state(obj) -> ObjectState:
 def _renderable(depsgraph):
     """(objects by name, lights in gather order, whether instancers add geometry) of the depsgraph."""
     objects, lights, instanced = {}, [], False
-    for instance in depsgraph.object_instances:
-        obj = instance.object
-        if obj.original.hide_render:
-            continue
+    for obj, matrix, is_instance in renderable_instances(depsgraph):
         if obj.type == "LIGHT":
-            lights.append((obj, np.array(instance.matrix_world)))
+            lights.append((obj, matrix))
         elif obj.type in GEOMETRY_TYPES:
-            if instance.is_instance:
+            if is_instance:
                 instanced = True
             else:
                 objects[obj.name] = obj

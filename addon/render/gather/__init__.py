@@ -12,6 +12,7 @@ from ....mitsuba_bridge.scene import (Checker, Emission, MeshData, RenderSetting
                                       Shape, Texture, walk_materials)
 from ....mitsuba_bridge.scene.finite import with_finite_meshes
 from ....mitsuba_bridge.scratch import ScratchFormatError, ScratchSet
+from ...geometry import units
 from ...storage import has_scratches, read_scratches
 from .camera import gather_camera, gather_film
 from .lights import gather_light
@@ -20,10 +21,21 @@ from .meshes import mesh_parts
 from .report import GatherError, Warnings
 from .world import gather_world
 
-__all__ = ["gather_scene", "gather_settings", "GatherError", "Warnings", "GEOMETRY_TYPES", "scratched_metal"]
+__all__ = ["gather_scene", "gather_settings", "renderable_instances", "GatherError", "Warnings", "GEOMETRY_TYPES",
+           "scratched_metal"]
 
 #: Object types that evaluate to a mesh.
 GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
+
+
+def renderable_instances(depsgraph):
+    """``(object, world matrix, is_instance)`` of every object instance that renders, in the depsgraph's order
+    (gather and the viewport's sync walk the scene the same way)."""
+    for instance in depsgraph.object_instances:
+        obj = instance.object
+        if obj.original.hide_render:
+            continue  # a viewport depsgraph (export) also holds objects that do not render
+        yield obj, np.array(instance.matrix_world), instance.is_instance
 
 
 def gather_settings(scene) -> RenderSettings:
@@ -48,16 +60,13 @@ def gather_scene(depsgraph, *, camera=None, view=None) -> SceneDescription:
         film = gather_film(scene, scene.scratch_iridescence.film_filter)
         camera_description = gather_camera(scene, camera if camera is not None else scene.camera, warnings)
     materials, shapes, lights, meshes = {}, [], [], {}
-    for instance in depsgraph.object_instances:
-        obj = instance.object
-        if obj.original.hide_render:
-            continue  # a viewport depsgraph (export) also holds objects that do not render
+    for obj, matrix, _ in renderable_instances(depsgraph):
         if obj.type == "LIGHT":
-            light = gather_light(obj, np.array(instance.matrix_world), warnings)
+            light = gather_light(obj, matrix, warnings)
             if light is not None:
                 lights.append(light)
         elif obj.type in GEOMETRY_TYPES:
-            shapes += _gather_object(obj, np.array(instance.matrix_world), scene, materials, meshes, warnings)
+            shapes += _gather_object(obj, matrix, scene, materials, meshes, warnings)
         elif obj.type in ("CURVES", "POINTCLOUD", "VOLUME", "GREASEPENCIL"):
             warnings.warn(f"{obj.type.lower()} objects are not supported and are not rendered ('{obj.name}')",
                           key=("type", obj.type))
@@ -139,7 +148,7 @@ def _uses_texture(material) -> bool:
 def scratched_metal(obj, scene, has_uvs: bool, warnings: Warnings) -> ScratchedMetal:
     """The scratch BSDF settings of ``obj`` (its scratches, base metal, coherence)."""
     settings = obj.scratch_iridescence
-    metres_per_unit = float(scene.unit_settings.scale_length)
+    metres_per_unit = units.metres_per_unit(scene)
     try:
         scratches = read_scratches(obj)
     except ScratchFormatError as error:
