@@ -2,8 +2,8 @@
 
 Importing this package never imports ``bpy``; Mitsuba is imported only by the
 functions that need it.  Its one side effect: where the extension bundles a
-libLLVM and the user has not set ``DRJIT_LIBLLVM_PATH``, it points Dr.Jit at the
-bundled library (see :mod:`.llvm_library`), which must happen before ``drjit``
+libLLVM and the user has not set ``DRJIT_LIBLLVM_PATH``, it has Dr.Jit load the
+bundled library (see :mod:`.device.llvm_library`; the environment stays as it was), which must happen before ``drjit``
 is first imported.
 
 Its one import name is ``scratch_iridescence.mitsuba_bridge`` (inside Blender:

@@ -288,3 +288,53 @@ def test_the_llvm_extra_pins_the_wheel_the_extension_bundles():
     extra = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["optional-dependencies"]["llvm"]
     version = LLVM_WHEEL.name.split("-")[1]
     assert extra == [f"karellen-llvm-core=={version}; sys_platform == 'linux' and platform_machine == 'x86_64'"]
+
+
+#: Register the add-on and press F12 with the bundled LLVM, then compare the environment with what it was.
+REGISTER_AND_RENDER = """
+import os, subprocess, sys
+import bpy
+before = dict(os.environ)
+import scratch_iridescence
+scratch_iridescence.register()
+scene = bpy.context.scene
+scene.render.engine = "MITSUBA_SCRATCH"
+scene.render.resolution_x, scene.render.resolution_y = 16, 12
+scene.scratch_iridescence.samples = 1
+scene.render.filepath = os.path.join(os.getcwd(), "frame.png")
+bpy.ops.render.render(write_still=True)
+import drjit as dr
+print("LLVM", dr.detail.llvm_version())
+print("CHANGED", sorted(key for key in set(before) | set(os.environ) if before.get(key) != os.environ.get(key)))
+child = subprocess.run([sys.executable, "-c", "import os; print(os.environ.get('DRJIT_LIBLLVM_PATH'))"],
+                       capture_output=True, text=True)
+print("CHILD SEES", child.stdout.strip())
+"""
+
+
+@needs_llvm_wheel
+def test_the_bundled_llvm_leaves_the_process_environment_as_it_was(tmp_path, system_with_only_llvm15,
+                                                                   blender_site_packages):
+    # Dr.Jit reads DRJIT_LIBLLVM_PATH during `import drjit` only: the variable exists for that import and no longer,
+    # so neither another add-on nor a child process of Blender's inherits it.
+    pytest.importorskip("bpy")
+    result = run_python(REGISTER_AND_RENDER, tmp_path, None, PYTHONPATH=str(blender_site_packages),
+                        **system_with_only_llvm15)
+    log = result.stdout + result.stderr
+    assert result.returncode == 0, log
+    assert f"LLVM ({LLVM_WHEEL.name.split('-')[1].split('.')[0]}," in result.stdout, log  # the bundled one rendered
+    assert "CHANGED []" in result.stdout, log
+    assert "CHILD SEES None" in result.stdout, log
+
+
+def test_the_environment_variable_is_set_for_the_import_only(monkeypatch):
+    monkeypatch.delenv(llvm_library.ENV_VAR, raising=False)
+    seen = []
+    with llvm_library._environment_variable(llvm_library.ENV_VAR, "/lib/libLLVM.so.19"):
+        seen.append(os.environ.get(llvm_library.ENV_VAR))
+    assert seen == ["/lib/libLLVM.so.19"] and llvm_library.ENV_VAR not in os.environ
+    monkeypatch.setenv(llvm_library.ENV_VAR, "/user/choice.so")
+    with pytest.raises(RuntimeError):
+        with llvm_library._environment_variable(llvm_library.ENV_VAR, "/lib/libLLVM.so.19"):
+            raise RuntimeError("an import that failed")
+    assert os.environ[llvm_library.ENV_VAR] == "/user/choice.so"
