@@ -27,7 +27,7 @@ class MitsubaScratchEngine(bpy.types.RenderEngine):
     bl_use_shading_nodes_custom = False
     # Frames go through Blender's compositor and sequencer like any engine's.
     bl_use_postprocess = True
-    # Mitsuba renders on the CPU (LLVM) or through CUDA, never with OpenGL; the
+    # Mitsuba renders on the CPU (LLVM) or through CUDA or Metal, never with OpenGL; the
     # viewport image is drawn in view_draw, where Blender provides the context.
     bl_use_gpu_context = False
 

@@ -55,9 +55,13 @@ class SCRATCH_PG_render(bpy.types.PropertyGroup):
     variant: EnumProperty(
         name="Device",
         description="Mitsuba variant; all are spectral, which diffraction colours need",
-        items=[("auto", "Automatic", "The GPU (CUDA) when an NVIDIA GPU is available, else the CPU"),
-               ("cuda_ad_spectral", "GPU (CUDA)", "Mitsuba's cuda_ad_spectral variant (NVIDIA GPUs)"),
-               ("llvm_ad_spectral", "CPU (LLVM)", "Mitsuba's llvm_ad_spectral variant (vectorised CPU)")],
+        # Explicit numbers: files store the number, so a new item takes a new one whatever its place
+        items=[("auto", "Automatic", "The GPU (CUDA on NVIDIA, Metal on Apple silicon) when available, "
+                                     "else the CPU", 0),
+               ("cuda_ad_spectral", "GPU (CUDA)", "Mitsuba's cuda_ad_spectral variant (NVIDIA GPUs)", 1),
+               ("metal_ad_spectral", "GPU (Metal)", "Mitsuba's metal_ad_spectral variant (Apple GPUs, macOS on "
+                                                    "Apple silicon)", 3),
+               ("llvm_ad_spectral", "CPU (LLVM)", "Mitsuba's llvm_ad_spectral variant (vectorised CPU)", 2)],
         default="auto", update=_tag_scene)
     film_filter: EnumProperty(
         name="Pixel Filter", description="Reconstruction filter of the film",
