@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import bpy
 
+from . import backend
 from .frame import render_frame
 
 __all__ = ["MitsubaScratchEngine", "ENGINE_ID"]
@@ -38,7 +39,10 @@ class MitsubaScratchEngine(bpy.types.RenderEngine):
     def __del__(self):
         # Blender frees the engine when the viewport leaves Rendered shading or closes:
         # the worker stops after its current pass (nothing waits for it here).
-        viewport = getattr(self, "viewport", None)
+        try:
+            viewport = getattr(self, "viewport", None)
+        except ReferenceError:  # Blender quitting freed the engine's data first: viewport.py's exit handler stops it
+            return
         if viewport is not None:
             viewport.stop()
 
@@ -47,6 +51,9 @@ class MitsubaScratchEngine(bpy.types.RenderEngine):
 
     def view_update(self, context, depsgraph):
         if self.viewport is None:
+            if (problem := backend.problem()) is not None:  # Mitsuba unusable here: say so in the viewport
+                self.update_stats("", problem)
+                return
             from .viewport import ViewportRender
 
             self.viewport = ViewportRender()

@@ -12,15 +12,11 @@ import traceback
 import bpy
 import numpy as np
 
+from . import backend
 from .gather import GatherError, gather_scene, gather_settings
 from .turns import viewports_paused
 
-__all__ = ["render_frame", "MITSUBA_MISSING", "combined_rect"]
-
-MITSUBA_MISSING = (
-    "Mitsuba is not available in Blender's Python ({error}). Install the Scratch Iridescence extension zip "
-    "built for your platform (it bundles the mitsuba, drjit and OpenEXR wheels), or install "
-    "'mitsuba==3.9.1 drjit==1.5.0' into Blender's Python, then restart Blender")
+__all__ = ["render_frame", "combined_rect"]
 
 #: The image in Blender refreshes at most this often (Esc is honoured after every chunk). Only the
 #: display depends on time: the chunks and so the image are fixed by samples, resolution and seed.
@@ -41,12 +37,8 @@ def _fail(engine, message: str) -> None:
 
 
 def _bridge():
-    """The bridge modules that need Mitsuba, or an ImportError naming what is missing."""
-    # The bridge first: importing it points Dr.Jit at a bundled libLLVM, which must precede ``import drjit``.
-    from ... import mitsuba_bridge  # noqa: F401
-    import drjit  # noqa: F401  (imported here to report a missing wheel by name)
-    import mitsuba  # noqa: F401
-
+    """The bridge modules that need Mitsuba, or :class:`.backend.BackendUnavailable` saying what to install."""
+    backend.require()  # Mitsuba, Dr.Jit and OpenEXR importable for this Blender's Python, or one message
     from ...mitsuba_bridge import builder
     from ...mitsuba_bridge.device import variants
     from ...mitsuba_bridge.render import activation, passes
@@ -57,8 +49,8 @@ def render_frame(engine, depsgraph) -> None:
     """Render the frame of ``depsgraph`` into ``engine``'s result (the body of ``RenderEngine.render``)."""
     try:
         builder, passes, variants, activation = _bridge()
-    except ImportError as error:
-        _fail(engine, MITSUBA_MISSING.format(error=error))
+    except backend.BackendUnavailable as error:
+        _fail(engine, str(error))
         return
     scene = depsgraph.scene
     try:

@@ -37,7 +37,8 @@ import numpy as np
 from ...mitsuba_bridge.render.session import Change, Session, Update
 from ...mitsuba_bridge.scene import Film
 from . import sync
-from .frame import MITSUBA_MISSING, combined_rect
+from .backend import MITSUBA_MISSING
+from .frame import combined_rect
 from .turns import viewport_turn
 from .view import border_crop, view_camera
 
