@@ -164,14 +164,24 @@ def _hand_to_drjit(library: Path) -> None:
 
 
 class _LibraryForDrJit(importlib.abc.MetaPathFinder):
-    """Finds ``drjit`` as the other finders do, and wraps its loader in :class:`_WithLibrary` (once)."""
+    """Finds ``drjit`` as the other finders do and wraps its loader in :class:`_WithLibrary`.
+
+    Stays in ``sys.meta_path`` until ``drjit`` is really imported (a mere ``importlib.util.find_spec``, as
+    the add-on's check of the bundled wheels makes, imports nothing); :class:`_WithLibrary` then removes it.
+    """
+
+    def __init__(self):
+        self._asking = False  #: asking the other finders: answer nothing
 
     def find_spec(self, name, path=None, target=None):
-        if name != "drjit":
+        if name != "drjit" or self._asking or _handed is None:
             return None
-        sys.meta_path.remove(self)  # the import machinery below must not come back here
-        spec = importlib.util.find_spec(name)
-        if spec is not None and spec.loader is not None and _handed is not None:
+        self._asking = True
+        try:
+            spec = importlib.util.find_spec(name)
+        finally:
+            self._asking = False
+        if spec is not None and spec.loader is not None:
             spec.loader = _WithLibrary(spec.loader, _handed)
         return spec
 
@@ -186,6 +196,7 @@ class _WithLibrary(importlib.abc.Loader):
         return self._loader.create_module(spec)
 
     def exec_module(self, module):
+        sys.meta_path[:] = [finder for finder in sys.meta_path if not isinstance(finder, _LibraryForDrJit)]
         with _environment_variable(ENV_VAR, str(self._library)):
             self._loader.exec_module(module)
 
