@@ -122,7 +122,11 @@ def main(argv=None) -> int:
     parser.add_argument("--versions", nargs="*", help="bpy versions to run (default: the whole matrix)")
     parser.add_argument("--zips", help="a folder of built zips (default: build them into out/blender-matrix/dist)")
     args = parser.parse_args(argv)
-    matrix = [b for b in MATRIX if not args.versions or b.version in args.versions]
+    known = {blender.version: blender for blender in MATRIX}
+    # A release outside the matrix runs too (its Python from its version: 5.1 and newer embed 3.13)
+    matrix = [known.get(version) or Blender(version, "3.13" if tuple(map(int, version.split(".")[:2])) >= (5, 1)
+                                            else "3.11", "asked for") for version in args.versions] \
+        if args.versions else list(MATRIX)
     began = time.perf_counter()
     zips = Path(args.zips).resolve() if args.zips else OUT / "dist"
     if not args.zips:
@@ -141,6 +145,8 @@ def main(argv=None) -> int:
               flush=True)
         if not steps:
             print(log[-3000:], flush=True)
+        if clean_exit and steps and all(outcome == "ok" for _, outcome, _, _ in steps):
+            shutil.rmtree(OUT / "runs" / blender.version / "user", ignore_errors=True)  # the installed copy: 0.5 GB
         good = sum(outcome == "ok" for _, outcome, _, _ in steps) + clean_exit
         bad = len(steps) + 1 - good
         passed, failed = passed + good, failed + bad
