@@ -113,6 +113,14 @@ def studio(scene, world=None):
     return plane
 
 
+def scratched_studio():
+    """:func:`studio` under a coloured world, its plane holding 200 generated scratches; returns the scene."""
+    scene = fresh_scene()
+    bpy.context.view_layer.objects.active = studio(scene, colour_world)
+    bpy.ops.scratch.generate("EXEC_DEFAULT", count=200, seed=3)
+    return scene
+
+
 def render(scene, name) -> Path:
     path = WORK / f"{name}.exr"
     scene.render.filepath = str(path)
@@ -268,10 +276,7 @@ def _():
 # ---------------------------------------------------------------------------------------------- export + CLI
 @step("export-and-cli-render")
 def _():
-    scene = fresh_scene()
-    plane = studio(scene, colour_world)
-    bpy.context.view_layer.objects.active = plane
-    bpy.ops.scratch.generate("EXEC_DEFAULT", count=200, seed=3)
+    scene = scratched_studio()
     scene.scratch_iridescence.samples = 256
     f12 = mean_of(render(scene, "export-f12"))
     folder = WORK / "export"
@@ -295,10 +300,7 @@ VIEWPORT = []
 
 @step("viewport-session")
 def _():
-    scene = fresh_scene()
-    plane = studio(scene, colour_world)
-    bpy.context.view_layer.objects.active = plane
-    bpy.ops.scratch.generate("EXEC_DEFAULT", count=200, seed=3)
+    scene = scratched_studio()
     scene.scratch_iridescence.viewport_samples = 100000  # passes go on until the process ends
     depsgraph = bpy.context.evaluated_depsgraph_get()
     camera = scene.camera
