@@ -24,7 +24,7 @@ help:
 	@echo "make test-stress [RUNS=20]  run 'make test' RUNS times in a row beside a CPU burner per core"
 	@echo "make test-blender  install the built zips into Blender 4.2.0, 4.2 LTS, 4.5 LTS and 5.x (pip bpy) and run the smoke set"
 	@echo "make bench      run the benchmarks in tests/bench"
-	@echo "make extension  build the extension zips (one per platform, wheels bundled) into dist/"
+	@echo "make extension  build the extension zips (one per platform and Blender Python, wheels bundled) into dist/"
 
 setup: $(STAMP) llvm llvm-wheel
 
@@ -99,8 +99,9 @@ paper: setup
 	@mkdir -p out/paper
 	$(PY) -m scratch_iridescence.scenes.paper --output out/paper --docs docs
 
-# Downloads the wheels named in blender_manifest.toml into wheels/ (once), builds
-# one zip per platform into dist/ and validates them with Blender's own tool.
+# Downloads the wheels named in blender_manifest.toml into wheels/ (once), builds one zip per
+# platform and Blender Python (3.11: Blender 4.2-5.0, 3.13: 5.1+) into dist/ and validates them
+# with Blender's own tool.
 extension: setup
 	$(PY) .ci/build_extension.py
 

@@ -130,13 +130,13 @@ def test_cuda_is_tried_first_and_an_old_llvm_does_not_matter_then(monkeypatch):
 
 @pytest.mark.parametrize("platform, expected", [
     ("linux", "apt install libllvm19"),
-    ("darwin", "brew install llvm"),
-    ("win32", "LLVM-C.dll"),
+    ("darwin", "'brew install llvm'"),
+    ("win32", "'winget install --id LLVM.LLVM --exact'"),
 ])
 def test_the_install_hint_names_the_fix_for_each_platform(platform, expected):
     hint = llvm_library.install_hint(platform)
     assert expected in hint
-    assert "DRJIT_LIBLLVM_PATH" in hint and "restart Blender" in hint and "CUDA" in hint
+    assert "DRJIT_LIBLLVM_PATH" in hint and "restart Blender" in hint and "CUDA" in hint and "Metal" in hint
 
 
 def manifest_llvm_wheel() -> Path:
@@ -338,3 +338,34 @@ def test_the_environment_variable_is_set_for_the_import_only(monkeypatch):
         with llvm_library._environment_variable(llvm_library.ENV_VAR, "/lib/libLLVM.so.19"):
             raise RuntimeError("an import that failed")
     assert os.environ[llvm_library.ENV_VAR] == "/user/choice.so"
+
+
+#: Windows without a bundled library: LLVM's own installation is handed over (simulated: sys.platform and the
+#: installer's path replaced, the machine's libLLVM 19 standing in for LLVM-C.dll; the system offers only 15).
+WINDOWS_INSTALL = """
+import os, sys
+from pathlib import Path
+from scratch_iridescence.mitsuba_bridge.device import llvm_library
+assert 'drjit' not in sys.modules
+llvm_library.WINDOWS_INSTALL = Path(sys.argv[-1])
+real_platform, sys.platform = sys.platform, 'win32'
+print('HANDED', llvm_library.configure())
+sys.platform = real_platform
+import drjit as dr
+print('LLVM', dr.detail.llvm_version(), 'ENV', os.environ.get('DRJIT_LIBLLVM_PATH'))
+"""
+
+
+def test_windows_hands_llvms_own_installation_to_drjit(tmp_path, system_with_only_llvm15):
+    library = next(iter(sorted(glob.glob("/usr/lib/x86_64-linux-gnu/libLLVM.so.1[6-9]*")
+                               + glob.glob("/usr/lib/x86_64-linux-gnu/libLLVM.so.[2-9][0-9]*"))), None)
+    if library is None:
+        pytest.skip("no libLLVM >= 16 of Debian's to stand in for LLVM-C.dll")
+    result = subprocess.run([sys.executable, "-c", WINDOWS_INSTALL, library], capture_output=True, text=True,
+                            cwd=tmp_path, timeout=300,
+                            env={**{k: v for k, v in os.environ.items() if k != llvm_library.ENV_VAR},
+                                 **system_with_only_llvm15, "DRJIT_CACHE_DIR": str(tmp_path / "cache")})
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert f"HANDED {library}" in result.stdout
+    major = library.split(".so.")[1].split(".")[0]
+    assert f"LLVM ({major}," in result.stdout and "ENV None" in result.stdout, result.stdout
