@@ -44,7 +44,8 @@ class OnlyBundled:
                 raise ImportError(name + " is not bundled")
             return spec
         return None
-sys.meta_path.insert(0, OnlyBundled())
+# before the path finder, after the bridge's own finder that hands Dr.Jit the bundled libLLVM during its import
+sys.meta_path.insert(sys.meta_path.index(importlib.machinery.PathFinder), OnlyBundled())
 
 engine = bpy.types.RenderEngine.bl_rna_get_subclass_py("MITSUBA_SCRATCH")
 print("ENGINE", engine.__module__)
@@ -202,6 +203,7 @@ def test_linux_zip_installs_enables_and_renders_with_its_own_wheels(linux_zip, t
     assert all(f"'{name}-" in log for name in ("mitsuba", "drjit", "openexr")), log
     assert f"MITSUBA {sandbox}" in log  # rendered with the bundled Mitsuba
     # ... and the bundled libLLVM (karellen-llvm-core 23), whatever the system offers
-    assert "LLVM (23, " in log and f"{sandbox}" in log.split("LLVM (23, ")[1], log
+    # (handed to Dr.Jit for its import only: the environment does not hold DRJIT_LIBLLVM_PATH afterwards)
+    assert re.search(r"^LLVM \(23, \d+, \d+\) None$", log, re.M), log
     assert "LLVM probe" not in log  # the crash probe ran in a child with the bundled wheels and rendered
     assert output.is_file() and output.stat().st_size > 100
