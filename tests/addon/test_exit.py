@@ -45,6 +45,7 @@ print("PASSES RUNNING", viewport.latest()[0].spp_done, flush=True)
 """
 
 
+@pytest.mark.slow  # ~20 s of a fresh Blender rendering; `make test-blender` ends every Blender of its matrix this way too
 def test_exit_while_a_viewport_pass_is_in_flight_is_clean(tmp_path):
     result = subprocess.run([sys.executable, "-c", EXIT_WITH_A_PASS_IN_FLIGHT, str(HERE)], capture_output=True,
                             text=True, cwd=tmp_path, timeout=600)
