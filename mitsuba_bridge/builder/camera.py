@@ -28,11 +28,12 @@ def film_dict(film: Film) -> dict:
     return result
 
 
-def sensor_dict(camera: Camera, film: Film, settings: RenderSettings) -> dict:
+def sensor_dict(camera: Camera, film: Film, settings: RenderSettings, *, medium=None) -> dict:
     """A ``perspective`` or ``orthographic`` sensor matching ``camera`` on ``film``.
 
     Mitsuba's camera frame looks along +Z with +X to the *left*; Blender's along
     −Z with +X to the right: a rotation by 180° about Y maps one onto the other.
+    ``medium``: the world's volume, in which the camera's rays start (a medium dict or object).
     """
     aspect_hw = film.height / film.width
     if camera.projection == "perspective":
@@ -64,6 +65,8 @@ def sensor_dict(camera: Camera, film: Film, settings: RenderSettings) -> dict:
         film=film_dict(film),
         sampler={"type": "independent", "sample_count": int(settings.spp), "seed": int(settings.seed)},
     )
+    if medium is not None:
+        sensor["medium"] = medium
     return sensor
 
 

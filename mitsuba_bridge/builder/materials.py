@@ -12,8 +12,8 @@ from typing import Optional
 
 import numpy as np
 
-from ..scene import (Add, Bump, Checker, Dielectric, Diffuse, Emission, Glossy, Mask, Mix, NormalMap, Principled,
-                     ScratchedMetal, Texture, Translucent, Transparent)
+from ..scene import (Add, Bump, Checker, Dielectric, Diffuse, Emission, Glossy, Interface, Mask, Mix, NormalMap,
+                     Principled, ScratchedMetal, Texture, Translucent, Transparent, Volumetric)
 from .transform import scale, to_mitsuba
 
 __all__ = ["bsdf_dict", "emitter_dict", "value_dict", "rgb", "BLACK", "add_weights", "scaled"]
@@ -90,11 +90,17 @@ def bsdf_dict(material, resources, *, key: str) -> dict:
         return BLACK if material.bsdf is None else nested(material.bsdf)
     if isinstance(material, ScratchedMetal):
         return resources.scratch_bsdf(material, key=key)
+    if isinstance(material, Interface):
+        return {"type": "null"}
+    if isinstance(material, Volumetric):  # the volume is the shape's medium (builder.volumes)
+        return nested(material.surface)
     raise TypeError(f"unknown material type {type(material).__name__}")
 
 
 def emitter_dict(material) -> Optional[dict]:
     """The area emitter of an emissive material, or None."""
+    if isinstance(material, Volumetric):
+        material = material.surface
     if isinstance(material, Emission) and any(c > 0 for c in material.radiance):
         return {"type": "area", "radiance": rgb(material.radiance)}
     return None

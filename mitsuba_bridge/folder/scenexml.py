@@ -30,7 +30,9 @@ PLUGIN_TAGS = {
                      "null", "normalmap", "bumpmap", "translucent",
                      "scratch_diffraction"), "bsdf"),
     **dict.fromkeys(("area", "point", "spot", "directional", "constant", "envmap", "sunsky"), "emitter"),
-    **dict.fromkeys(("bitmap", "checkerboard"), "texture"),
+    **dict.fromkeys(("bitmap", "checkerboard", "generated"), "texture"),
+    "homogeneous": "medium",
+    **dict.fromkeys(("hg", "isotropic"), "phase"),
 }
 
 _POINTS = {"position", "center", "origin", "target"}

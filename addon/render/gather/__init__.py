@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from ....mitsuba_bridge.scene import (Checker, Emission, MeshData, RenderSettings, SceneDescription, ScratchedMetal,
-                                      Shape, Texture, walk_materials)
+                                      Shape, Texture, Volumetric, walk_materials)
 from ....mitsuba_bridge.scene.finite import with_finite_meshes
 from ....mitsuba_bridge.scratch import ScratchFormatError, ScratchSet
 from ...geometry import units
@@ -19,7 +19,7 @@ from .lights import gather_light
 from .materials import gather_material
 from .meshes import mesh_parts
 from .report import GatherError, Warnings
-from .world import gather_world
+from .world import gather_world, gather_world_volume
 
 __all__ = ["gather_scene", "gather_settings", "renderable_instances", "GatherError", "Warnings", "GEOMETRY_TYPES",
            "scratched_metal"]
@@ -71,6 +71,7 @@ def gather_scene(depsgraph, *, camera=None, view=None) -> SceneDescription:
             warnings.warn(f"{obj.type.lower()} objects are not supported and are not rendered ('{obj.name}')",
                           key=("type", obj.type))
     world = gather_world(scene.world, warnings)
+    world_volume = gather_world_volume(scene.world, warnings)
     if not shapes and not lights and world is None:
         warnings.warn("the scene has no visible objects, lights or world: the image is black")
     elif not lights and world is None and not any(_emits(m) for m in materials.values()):
@@ -79,11 +80,11 @@ def gather_scene(depsgraph, *, camera=None, view=None) -> SceneDescription:
     # NaN/inf vertices (a broken modifier or driver) would blacken the image silently: drop them, with a warning.
     return with_finite_meshes(SceneDescription(film=film, camera=camera_description, shapes=tuple(shapes),
                                                materials=materials, lights=tuple(lights), world=world,
-                                               warnings=warnings.as_tuple()))
+                                               warnings=warnings.as_tuple(), world_volume=world_volume))
 
 
 def _emits(material) -> bool:
-    return isinstance(material, Emission)
+    return isinstance(material.surface if isinstance(material, Volumetric) else material, Emission)
 
 
 def _gather_object(obj, matrix, scene, materials: dict, meshes: dict, warnings: Warnings) -> list[Shape]:

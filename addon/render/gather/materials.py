@@ -14,10 +14,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from ....mitsuba_bridge.scene import (Add, Bump, Checker, Dielectric, Diffuse, Emission, Glossy, Mask, Mix, NormalMap,
-                                      Principled, Texture, Translucent, Transparent, walk_materials)
+from ....mitsuba_bridge.scene import (Add, Bump, Checker, Dielectric, Diffuse, Emission, Glossy, Interface, Mask, Mix,
+                                      NormalMap, Principled, Texture, Translucent, Transparent, Volumetric,
+                                      walk_materials)
 from .report import Warnings
 from .values import ValueReader, linked_output
+from .volumes import gather_volume
 
 __all__ = ["gather_material", "linked_node", "DEFAULT_MATERIAL", "FALLBACK_MATERIAL", "SUPPORTED_SHADERS",
            "SCRATCH_GROUP"]
@@ -264,6 +266,7 @@ def gather_material(material, warnings: Warnings, *, scratch=None):
 
     ``scratch``: the object's :class:`ScratchedMetal` when it carries scratches. It replaces
     a "Scratch BSDF" node group in the tree, or else the whole material (as before such groups).
+    A shader on the output's Volume makes a :class:`Volumetric` material (docs/rendering.md, Volumes).
     """
     if material is None:
         return DEFAULT_MATERIAL if scratch is None else scratch
@@ -277,10 +280,25 @@ def gather_material(material, warnings: Warnings, *, scratch=None):
             return scratch
         warnings.warn(f"{owner} has no Material Output node: rendered as diffuse grey")
         return FALLBACK_MATERIAL
+    has_volume = "Volume" in output.inputs and linked_node(output.inputs["Volume"]) is not None
+    if scratch is not None and has_volume:
+        warnings.warn(f"{owner}: the volume inside the scratched object is not rendered (the scratch BSDF is "
+                      "opaque metal)", key=("scratched-volume", material.name))
+        has_volume = False
+    volume = gather_volume(output.inputs["Volume"], warnings, owner) if has_volume else None
+    surface = _surface(output, material, owner, scratch, warnings, has_volume=has_volume)
+    return surface if volume is None else Volumetric(surface, volume)
+
+
+def _surface(output, material, owner: str, scratch, warnings: Warnings, *, has_volume: bool):
+    """The material of the output's Surface (an :class:`Interface` when only a volume is connected)."""
     if linked_node(output.inputs["Surface"]) is None:
         if scratch is not None:
             return scratch
-        warnings.warn(f"{owner}: nothing is connected to the output's Surface: rendered black, as in Cycles")
+        if has_volume:  # Cycles renders the volume with no surface: the mesh only bounds it (even one
+            return Interface()  # not supported here, which gather_volume reported)
+        warnings.warn(f"{owner}: nothing is connected to the output's Surface or Volume: rendered black, "
+                      "as in Cycles")
         return BLACK
     shaders = _Shaders(warnings, owner, scratch, material.name)
     surface = shaders.shader(output.inputs["Surface"])

@@ -164,6 +164,28 @@ class ValueReader:
         """Input ``name`` as a number or a single-channel pixel array (colours become luminance)."""
         return _as_float(self.evaluate(node.inputs[name], owner_node=node), self)
 
+    def mean(self, node, name: str, *, colour: bool):
+        """``(value, source)``: input ``name`` of ``node`` averaged over space, and the node that made it vary.
+
+        A constant comes back as it is with ``source`` None. An image (or what is baked from one) gives the
+        mean of its pixels, a checker the mean of its two colours, and Noise and Wave textures their mean
+        level, 0.5; ``source`` is then that texture node, for a warning naming it. Where a uniform value is
+        all a renderer takes (a homogeneous volume), this is the value that keeps the mean extinction.
+        """
+        socket = node.inputs[name]
+        source = linked_output(socket)
+        if source is not None and source[0].bl_idname in _HALF_MEAN:
+            value = 0.5
+        else:
+            value = self.evaluate(socket, owner_node=node)
+            if isinstance(value, Checker):
+                value = (np.asarray(value.color1, dtype=np.float64) + np.asarray(value.color2, dtype=np.float64)) / 2
+            elif _is_array(value):
+                value = self._pixels(value).reshape(-1, 3).mean(axis=0)
+            else:
+                source = None  # a constant (folded): nothing varies
+        return self.finish(value, colour=colour, name=""), (None if source is None else source[0])
+
     # ---- nodes --------------------------------------------------------------------------------------
 
     def _image(self, node, output):
@@ -329,6 +351,9 @@ def _socket_default(socket):
         return np.asarray(value[:3], dtype=np.float64)
     return float(value)
 
+
+#: Procedural textures whose outputs average 0.5 over space (Perlin noise and the wave's sine around 0.5).
+_HALF_MEAN = ("ShaderNodeTexNoise", "ShaderNodeTexWave")
 
 _HANDLERS = {
     "ShaderNodeTexImage": ValueReader._image,
