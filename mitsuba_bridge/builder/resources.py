@@ -21,6 +21,7 @@ import re
 
 import numpy as np
 
+from ..bsdf.generated import ATTRIBUTE as GENERATED_ATTRIBUTE
 from ..bsdf.tables.references import aligned_array
 from ..scene.colour import srgb_to_linear
 from ..scene import MeshData, ScratchedMetal, Shape, Texture
@@ -29,8 +30,6 @@ from .transform import to_mitsuba
 __all__ = ["InMemory", "world_geometry", "safe_name", "mesh_buffer", "bitmap_options", "scratch_plugin_settings",
            "load_dict", "GENERATED_ATTRIBUTE"]
 
-#: The mesh attribute holding Blender's Generated coordinates (:attr:`...scene.MeshData.generated`).
-GENERATED_ATTRIBUTE = "vertex_generated"
 
 # Image rows run top-down, Blender's v runs bottom-up: look textures up at (u, 1 - v).
 _FLIP_V = np.array([[1.0, 0, 0, 0], [0, -1.0, 0, 1.0], [0, 0, 1.0, 0], [0, 0, 0, 1.0]])

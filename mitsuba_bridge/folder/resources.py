@@ -88,6 +88,6 @@ class ToFolder:
     def _ply(self, mesh: MeshData) -> str:
         if id(mesh) not in self._meshes:
             relative = self._unique("meshes", mesh.name, ".ply")
-            write_ply(self.folder / relative, mesh.positions, mesh.faces, mesh.normals, mesh.uvs)
+            write_ply(self.folder / relative, mesh.positions, mesh.faces, mesh.normals, mesh.uvs, mesh.generated)
             self._meshes[id(mesh)] = relative
         return self._meshes[id(mesh)]

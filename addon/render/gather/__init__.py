@@ -92,11 +92,11 @@ def _gather_object(obj, matrix, scene, materials: dict, meshes: dict, warnings: 
     scratched = has_scratches(original)
     # Objects (and instances) showing the same evaluated mesh share its data; other
     # types are converted per object.
-    key = (obj.data.as_pointer() if obj.type == "MESH" else obj.name, scratched)
+    key = (obj.data.as_pointer() if obj.type == "MESH" else obj.name, scratched, False)
     if key not in meshes:
         meshes[key] = _object_parts(obj, scratched)
     parts = meshes[key]
-    shapes = []
+    keys = []
     for slot, mesh in parts:
         material = obj.material_slots[slot].material if slot < len(obj.material_slots) else None
         if scratched:
@@ -108,21 +108,27 @@ def _gather_object(obj, matrix, scene, materials: dict, meshes: dict, warnings: 
             material_key = "default" if material is None else f"material:{material.name}"
             if material_key not in materials:
                 materials[material_key] = gather_material(material, warnings)
-            if mesh.uvs is None and _uses_texture(materials[material_key]):
+            if mesh.uvs is None and _uses_texture(materials[material_key], "uv"):
                 warnings.warn(f"object '{obj.name}' has no UV map but its material uses an image texture: "
                               "the texture is read at UV (0, 0)", key=("no-uv", obj.name))
-        shapes.append(Shape(name=mesh.name, mesh=mesh, to_world=matrix, material=material_key))
-    return shapes
+        keys.append(material_key)
+    if any(_uses_texture(materials[material_key], "generated") for material_key in keys):
+        generated_key = key[:2] + (True,)  # the same parts with Generated coordinates
+        if generated_key not in meshes:
+            meshes[generated_key] = _object_parts(obj, scratched, generated=True)
+        parts = meshes[generated_key]
+    return [Shape(name=mesh.name, mesh=mesh, to_world=matrix, material=material_key)
+            for (_, mesh), material_key in zip(parts, keys)]
 
 
-def _object_parts(obj, scratched: bool):
+def _object_parts(obj, scratched: bool, *, generated: bool = False):
     """Mesh parts of an evaluated object (scratched objects stay whole: one BSDF covers them)."""
     if obj.type == "MESH":
-        parts = mesh_parts(obj.data, obj.name)
+        parts = mesh_parts(obj.data, obj.name, generated=generated)
     else:
         mesh = obj.to_mesh()
         try:
-            parts = mesh_parts(mesh, obj.name) if mesh is not None else []
+            parts = mesh_parts(mesh, obj.name, generated=generated) if mesh is not None else []
         finally:
             obj.to_mesh_clear()
     if scratched and len(parts) > 1:
@@ -137,13 +143,17 @@ def _join(meshes, name) -> MeshData:
         name, np.concatenate([m.positions for m in meshes]),
         np.concatenate([m.faces + np.uint32(o) for m, o in zip(meshes, offsets)]),
         np.concatenate([m.normals for m in meshes]) if has("normals") else None,
-        np.concatenate([m.uvs for m in meshes]) if has("uvs") else None)
+        np.concatenate([m.uvs for m in meshes]) if has("uvs") else None,
+        np.concatenate([m.generated for m in meshes]) if has("generated") else None)
 
 
-def _uses_texture(material) -> bool:
-    return any(isinstance(getattr(part, name, None), (Texture, Checker)) for part in walk_materials(material)
-               for name in ("reflectance", "base_color", "metallic", "roughness", "color", "factor", "opacity",
-                            "texture", "height"))
+def _uses_texture(material, coordinates: str) -> bool:
+    """Whether a texture of ``material`` is looked up in ``coordinates`` (``"uv"`` or ``"generated"``)."""
+    return any(isinstance(value, (Texture, Checker)) and value.coordinates == coordinates
+               for part in walk_materials(material)
+               for value in (getattr(part, name, None) for name in ("reflectance", "base_color", "metallic",
+                                                                   "roughness", "color", "factor", "opacity",
+                                                                   "texture", "height")))
 
 
 def scratched_metal(obj, scene, has_uvs: bool, warnings: Warnings) -> ScratchedMetal:

@@ -12,12 +12,16 @@ On a scratched object a node group named "Scratch BSDF" stands for the
 """
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from ....mitsuba_bridge.scene import (Add, Bump, Checker, Dielectric, Diffuse, Emission, Glossy, Interface, Mask, Mix,
                                       NormalMap, Principled, Texture, Translucent, Transparent, Volumetric,
                                       walk_materials)
+from ....mitsuba_bridge.scene.albedo import add_sum
 from .report import Warnings
+from .textures import brightest_pixel
 from .values import ValueReader, linked_output
 from .volumes import gather_volume
 
@@ -97,7 +101,14 @@ class _Shaders:
                     return second
             return Mix(factor, first, second)
         if kind == "ShaderNodeAddShader":
-            return Add(self.shader(node.inputs[0]), self.shader(node.inputs[1]))
+            added = Add(self.shader(node.inputs[0]), self.shader(node.inputs[1]))
+            total = add_sum(added, brightest_pixel)
+            if total > 1.0 + 1e-6:
+                self.warnings.warn(f"{self.owner}: Add Shader '{node.name}' scatters up to {total:.2f}× the light "
+                                   f"that arrives: both halves are rendered at {1 / total:.2f}× so that the surface "
+                                   "creates no energy (Cycles renders the sum, brighter)",
+                                   key=("add", self.material_name, node.name))
+            return added
         if kind == "ShaderNodeEmission":
             colour = self.value(node, "Color", True)
             if not isinstance(colour, tuple):
@@ -180,6 +191,14 @@ class _Shaders:
             return Emission(radiance=tuple(c * strength for c in emission), bsdf=surface)
         return surface
 
+    def in_uv(self, texture: Texture, node) -> Texture:
+        """``texture`` looked up in UV (normal and bump maps are: Mitsuba's take their tangents from the UVs)."""
+        if texture.coordinates == "uv":
+            return texture
+        self.warnings.warn(f"{self.owner}: the texture of '{node.name}' is laid out in Generated coordinates; "
+                           "normal and bump maps read it in UV here")
+        return dataclasses.replace(texture, coordinates="uv")
+
     def with_normal(self, node, bsdf):
         """``bsdf`` under the Normal Map or Bump node plugged into ``node``'s Normal input, if any."""
         if "Normal" not in node.inputs:
@@ -201,7 +220,7 @@ class _Shaders:
             if not isinstance(texture, Texture):
                 self.warnings.warn(f"{self.owner}: normal map '{source.name}' needs an image texture: ignored")
                 return bsdf
-            return NormalMap(texture, bsdf)
+            return NormalMap(self.in_uv(texture, source), bsdf)
         if source.bl_idname == "ShaderNodeBump":
             height = self.value(source, "Height")
             # Mitsuba's bumpmap displaces by height × scale along the normal, as Blender's by height × distance;
@@ -212,6 +231,7 @@ class _Shaders:
                 if isinstance(height, Checker):
                     self.warnings.warn(f"{self.owner}: bump '{source.name}' needs an image texture as height: ignored")
                 return inner
+            height = self.in_uv(height, source)
             if inner is not bsdf:  # Blender applies the Bump's own Normal input first: the outer perturbation
                 return NormalMap(inner.texture, Bump(height, -scale if source.invert else scale, inner.bsdf)) \
                     if isinstance(inner, NormalMap) else Bump(height, -scale if source.invert else scale, inner)
