@@ -11,7 +11,7 @@ import contextlib
 from collections import Counter
 
 from ..scene import Interface, Mask, RenderSettings, SceneDescription, Transparent, walk_materials
-from .camera import film_dict, integrator_dict, sensor_dict, window_camera
+from .camera import film_dict, integrator_dict, sensor_dict, window_camera, with_data_passes
 from .lights import light_dict, world_dict
 from .materials import add_weights, bsdf_dict, emitter_dict
 from .resources import InMemory, load_dict, safe_name
@@ -59,6 +59,8 @@ def scene_dict(description: SceneDescription, settings: RenderSettings, resource
             _has_see_through_surfaces(description) or has_media(description))),
         "sensor": sensor_dict(description.camera, description.film, settings, medium=world_medium),
     }
+    if settings.data_passes:
+        result["integrator"] = with_data_passes(result["integrator"], description.camera)
     bsdfs = {key: bsdf_dict(material, resources, key=key) for key, material in description.materials.items()
              if any(shape.material == key for shape in description.shapes)}
     if shared:

@@ -9,7 +9,7 @@ import numpy as np
 from ..scene import Camera, Film, RenderSettings
 from .transform import FLIP_XZ, scale, to_mitsuba, translate
 
-__all__ = ["sensor_dict", "integrator_dict", "film_dict", "window_camera"]
+__all__ = ["sensor_dict", "integrator_dict", "film_dict", "window_camera", "with_data_passes"]
 
 
 def film_dict(film: Film) -> dict:
@@ -107,3 +107,9 @@ def integrator_dict(settings: RenderSettings, film: Film, *, see_through_surface
     """
     return {"type": "volpath" if see_through_surfaces else "path", "max_depth": int(settings.max_depth),
             "hide_emitters": bool(film.transparent)}
+
+
+def with_data_passes(integrator: dict, camera: Camera) -> dict:
+    """``integrator`` wrapped so that it also renders Blender's data passes (``render.aovs``: Depth along
+    ``camera``'s axis, Denoising Albedo and Normal in Cycles' conventions)."""
+    return {"type": "blender_passes", "integrator": integrator, "camera_to_world": to_mitsuba(camera.to_world)}

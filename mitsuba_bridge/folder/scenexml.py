@@ -18,7 +18,7 @@ __all__ = ["dict_to_xml", "write_xml", "PLUGIN_TAGS"]
 #: Plugin type → XML element.
 PLUGIN_TAGS = {
     "scene": "scene",
-    **dict.fromkeys(("path", "direct", "volpath", "aov"), "integrator"),
+    **dict.fromkeys(("path", "direct", "volpath", "aov", "blender_passes"), "integrator"),
     **dict.fromkeys(("perspective", "orthographic", "thinlens"), "sensor"),
     "hdrfilm": "film", "specfilm": "film",
     **dict.fromkeys(("box", "tent", "gaussian", "mitchell", "catmullrom", "lanczos"), "rfilter"),

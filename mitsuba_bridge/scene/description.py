@@ -290,6 +290,8 @@ class RenderSettings:
     max_depth: int = 8
     seed: int = 0
     variant: str = "auto"
+    #: also render Blender's data passes (Depth, Denoising Albedo and Normal; F12 when the view layer asks)
+    data_passes: bool = False
 
     def __post_init__(self):
         if self.spp < 1:
