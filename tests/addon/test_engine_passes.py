@@ -3,12 +3,15 @@ layer asks for them, hold what Cycles writes (a diffuse plane's base colour, its
 space, the distance along the camera's axis; the same scene rendered by Cycles), and feed the
 compositor's Denoise node headless."""
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
 bpy = pytest.importorskip("bpy")
 from render_scenes import add_camera, add_plane, material, set_world, setup_render  # noqa: E402
+from test_ui import Layout  # noqa: E402
+from scratch_iridescence.addon.render import panels  # noqa: E402
 from scratch_iridescence.mitsuba_bridge.files.exr import read_exr  # noqa: E402
 
 WIDTH, HEIGHT = 32, 24
@@ -77,6 +80,10 @@ def test_passes_are_registered_only_when_the_view_layer_asks(empty_scene):
     scene.scratch_iridescence.denoising_data = True
     assert {o.name for o in layers.outputs if o.enabled} == {"Image", "Alpha", "Depth", "Denoising Normal",
                                                              "Denoising Albedo"}
+    # View Layer Properties › Passes shows both switches for this engine
+    layout = Layout()
+    panels.SCRATCH_PT_view_layer_passes.draw(SimpleNamespace(layout=layout), bpy.context)
+    assert {"use_pass_combined", "use_pass_z", "denoising_data"} <= set(layout.shown)
 
 
 def test_passes_hold_base_colour_camera_space_normal_and_axis_depth(empty_scene, tmp_path):

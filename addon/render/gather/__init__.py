@@ -11,6 +11,7 @@ import numpy as np
 from ....mitsuba_bridge.scene import (Checker, Emission, MeshData, RenderSettings, SceneDescription, ScratchedMetal,
                                       Shape, Texture, Volumetric, walk_materials)
 from ....mitsuba_bridge.scene.finite import with_finite_meshes
+from ....mitsuba_bridge.scene.glints import check_glints, surface_samples
 from ....mitsuba_bridge.scratch import ScratchFormatError, ScratchSet
 from ...geometry import units
 from ...storage import has_scratches, read_scratches
@@ -77,10 +78,31 @@ def gather_scene(depsgraph, *, camera=None, view=None) -> SceneDescription:
     elif not lights and world is None and not any(_emits(m) for m in materials.values()):
         warnings.warn("the scene has no lights, no emissive material and a black world: the image is black; "
                       "add a light or a world colour")
+    else:
+        _warn_unlit_glints(shapes, materials, camera_description, lights, world, warnings)
     # NaN/inf vertices (a broken modifier or driver) would blacken the image silently: drop them, with a warning.
     return with_finite_meshes(SceneDescription(film=film, camera=camera_description, shapes=tuple(shapes),
                                                materials=materials, lights=tuple(lights), world=world,
                                                warnings=warnings.as_tuple(), world_volume=world_volume))
+
+
+def _warn_unlit_glints(shapes, materials: dict, camera, lights, world, warnings: Warnings) -> None:
+    """A warning per scratched object whose glints no light of the scene can show (:mod:`scene.glints`)."""
+    emissive = any(_emits(m) for m in materials.values())
+    for key, material in materials.items():
+        metal = next((part for part in walk_materials(material) if isinstance(part, ScratchedMetal)), None)
+        if metal is None or metal.scratches.count == 0:
+            continue
+        samples = [surface_samples(shape.mesh, shape.to_world) for shape in shapes if shape.material == key]
+        if not samples:
+            continue
+        surfaces = tuple(np.concatenate([sample[i] for sample in samples]) for i in (0, 1))
+        check = check_glints(surfaces, metal.scratches, camera, lights, world, emissive=emissive)
+        if not check.shows:
+            name = key.split(":", 1)[1]
+            warnings.warn(f"object '{name}': no light can show its scratches' glints ({check.describe()}): it "
+                          "renders as a dark mirror; Object Properties › Scratches › Add Glint Lighting places a "
+                          "sun that shows them", key=("glints", name))
 
 
 def _emits(material) -> bool:
