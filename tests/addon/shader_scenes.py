@@ -136,21 +136,21 @@ def mix_textured():
     return mat
 
 
-def add_shader():
-    mat = material("Add", "ShaderNodeAddShader")
-    _link(mat, _node(mat, "ShaderNodeBsdfDiffuse", Color=(0.4, 0.3, 0.2, 1)).outputs[0], _shader(mat).inputs[0])
-    _link(mat, _node(mat, "ShaderNodeBsdfAnisotropic", Color=(0.3, 0.3, 0.3, 1), Roughness=0.25).outputs[0],
+def _added(name, diffuse_colour, glossy_colour, roughness):
+    mat = material(name, "ShaderNodeAddShader")
+    _link(mat, _node(mat, "ShaderNodeBsdfDiffuse", Color=diffuse_colour).outputs[0], _shader(mat).inputs[0])
+    _link(mat, _node(mat, "ShaderNodeBsdfAnisotropic", Color=glossy_colour, Roughness=roughness).outputs[0],
           _shader(mat).inputs[1])
     return mat
+
+
+def add_shader():
+    return _added("Add", (0.4, 0.3, 0.2, 1), (0.3, 0.3, 0.3, 1), 0.25)
 
 
 def add_capped():
     """White diffuse + white glossy: Cycles' sum reflects up to twice the light; here both halves are halved."""
-    mat = material("AddCapped", "ShaderNodeAddShader")
-    _link(mat, _node(mat, "ShaderNodeBsdfDiffuse", Color=(1, 1, 1, 1)).outputs[0], _shader(mat).inputs[0])
-    _link(mat, _node(mat, "ShaderNodeBsdfAnisotropic", Color=(1, 1, 1, 1), Roughness=0.3).outputs[0],
-          _shader(mat).inputs[1])
-    return mat
+    return _added("AddCapped", (1, 1, 1, 1), (1, 1, 1, 1), 0.3)
 
 
 def emission_mix():
@@ -234,15 +234,7 @@ def math_and_mix_rgb():
 
 def _volume_only(name, kind, **inputs):
     """A material with ``kind`` on its Volume output and nothing on its Surface (smoke in a closed mesh)."""
-    mat = bpy.data.materials.new(name)
-    tree = mat.node_tree
-    tree.nodes.clear()
-    output = tree.nodes.new("ShaderNodeOutputMaterial")
-    node = tree.nodes.new(kind)
-    for key, value in inputs.items():
-        node.inputs[key].default_value = value
-    tree.links.new(node.outputs[0], output.inputs["Volume"])
-    return mat
+    return material(name, kind, output_socket="Volume", **inputs)
 
 
 def volume_principled():
