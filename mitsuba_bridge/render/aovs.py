@@ -5,13 +5,17 @@ normal pass; Cycles writes them when *Denoising Data* is on, and the Depth pass 
 module's ``blender_passes`` integrator wraps the scene's integrator (``path`` or ``volpath``) and
 adds, per camera ray, the first surface it meets:
 
-* **albedo**: the surface's diffuse reflectance (``eval_diffuse_reflectance``: the colour of a diffuse
-  or Principled base, a glossy or glass colour's share...) in linear Rec.709 RGB. A spectral render
-  sees four random wavelengths per sample, which would make the pass as colour-noisy as the image;
-  instead the reflectance is evaluated at 32 fixed wavelengths and integrated against the CIE 1931
-  curves under D65 (the white of Mitsuba's RGB emitters), normalised so that a white reflectance is
-  (1, 1, 1): noise-free, and the colour an RGB reflectance was given. Rays that miss see the world:
-  its radiance at those wavelengths, clipped to [0, 1], as Cycles' background albedo;
+* **albedo**: a diffuse surface's reflectance (``eval_diffuse_reflectance``: a diffuse or Principled
+  base colour) in linear Rec.709. A spectral render sees four random wavelengths per sample, which
+  would make the pass as colour-noisy as the image (and Mitsuba's own ``aov`` integrator also leaves
+  the D65 white point out: a (0.8, 0.3, 0.1) base came out (0.93, 0.29, 0.08)); here the reflectance
+  is evaluated at 32 fixed wavelengths and integrated against the CIE 1931 curves under D65,
+  normalised so that a white reflectance is exactly white: noise-free, and the colour the material
+  was given. Surfaces without a diffuse part (metals, glass, the scratch BSDF) give 0: evaluating the
+  scratch model eight times more per camera ray would cost more than the render. Where a pixel's
+  rays miss, the host puts the world's colour seen there (the image's, clipped to [0, 1]; as noisy
+  as the image), as Cycles' background albedo (evaluating a sky at 32 wavelengths for every camera
+  ray cost as much again as the render);
 * **normal**: the shading normal in Cycles' camera space (x right, y up, z *into* the view: Blender's
   camera frame with z negated), 0 where the ray misses;
 * **depth**: the distance along the camera's axis, Blender's Z (not the ray's length), averaged over
@@ -35,9 +39,10 @@ BACKGROUND_DEPTH = 1e10
 #: Blender's pass name → (channels, chan_id, type) for ``RenderEngine.register_pass``.
 PASSES = {"Depth": (1, "Z", "VALUE"), "Denoising Normal": (3, "XYZ", "VECTOR"),
           "Denoising Albedo": (3, "RGB", "COLOR")}
-_WAVELENGTHS = 32  # 8 evaluations of a 4-wavelength spectrum: well below 1 % error for smooth spectra
 _CLASSES: dict = {}
 
+
+_WAVELENGTHS = 32  # 8 evaluations of a 4-wavelength spectrum: well below 1 % error for smooth spectra
 # Linear Rec.709 (sRGB primaries, D65 white) from CIE XYZ.
 _XYZ_TO_REC709 = np.array([[3.2404542, -1.5371385, -0.4985314],
                            [-0.9692660, 1.8760108, 0.0415560],
@@ -45,29 +50,23 @@ _XYZ_TO_REC709 = np.array([[3.2404542, -1.5371385, -0.4985314],
 
 
 def _quadrature():
-    """(wavelengths (8, 4) nm, reflectance weights (8, 4, 3), radiance weights (8, 4, 3)).
-
-    Rec.709 RGB of a reflectance ρ under D65 is Σ weights · ρ(wavelengths); that of a radiance L (whose spectrum
-    carries its illuminant: Mitsuba's RGB emitters are D65 times the colour) is Σ weights / D65 · L.
-    """
+    """(wavelengths (8, 4) nm, weights (8, 4, 3)): Rec.709 RGB of a reflectance ρ under D65 is
+    Σ weights · ρ(wavelengths)."""
     import mitsuba as mi
 
     lo, hi = float(mi.MI_CIE_MIN), float(mi.MI_CIE_MAX)
-    step = (hi - lo) / _WAVELENGTHS
-    wavelengths = lo + (np.arange(_WAVELENGTHS) + 0.5) * step
+    wavelengths = lo + (np.arange(_WAVELENGTHS) + 0.5) * (hi - lo) / _WAVELENGTHS
     curves = mi.cie1931_xyz(mi.Float(wavelengths))
     xyz = np.stack([np.array(curves[i], dtype=np.float64) for i in range(3)], axis=1)  # (N, 3)
     d65 = mi.load_dict({"type": "d65"})
     si = mi.SurfaceInteraction3f()
-    samples = []
+    illuminant = []
     for start in range(0, _WAVELENGTHS, 4):
         si.wavelengths = mi.Spectrum(*(float(w) for w in wavelengths[start:start + 4]))
-        samples.append(np.array(d65.eval(si), dtype=np.float64).ravel())
-    illuminant = np.concatenate(samples)
-    weights = (xyz * illuminant[:, None]) @ _XYZ_TO_REC709.T  # (N, 3): each wavelength's share of R, G, B
+        illuminant.append(np.array(d65.eval(si), dtype=np.float64).ravel())
+    weights = (xyz * np.concatenate(illuminant)[:, None]) @ _XYZ_TO_REC709.T  # each wavelength's share of RGB
     weights /= weights.sum(axis=0)  # a white reflectance (ρ = 1) is exactly (1, 1, 1)
-    radiance = weights / illuminant[:, None]  # a white emitter (L = D65) too
-    return wavelengths.reshape(-1, 4), weights.reshape(-1, 4, 3), radiance.reshape(-1, 4, 3)
+    return wavelengths.reshape(-1, 4), weights.reshape(-1, 4, 3)
 
 
 def plugin_class():
@@ -78,7 +77,7 @@ def plugin_class():
     variant = mi.variant()
     if variant in _CLASSES:
         return _CLASSES[variant]
-    wavelengths, reflectance_weights, radiance_weights = _quadrature()
+    wavelengths, weights = _quadrature()
 
     class BlenderPasses(mi.SamplingIntegrator):
         def __init__(self, props):
@@ -96,36 +95,24 @@ def plugin_class():
         def aov_names(self):
             return list(self.inner.aov_names()) + list(CHANNELS)
 
-        def _rgb(self, evaluate, si, weights):
-            """Rec.709 RGB of the spectrum ``evaluate(si)`` at the fixed quadrature wavelengths."""
-            rgb = [mi.Float(0.0), mi.Float(0.0), mi.Float(0.0)]
-            for group in range(len(wavelengths)):
-                si.wavelengths = mi.Spectrum(*(float(w) for w in wavelengths[group]))
-                value = evaluate(si)
-                for lane in range(4):
-                    for channel in range(3):
-                        rgb[channel] += float(weights[group, lane, channel]) * value[lane]
-            return rgb
-
         def sample(self, scene, sampler, ray, medium=None, active=True):
             result, valid, aovs = self.inner.sample(scene, sampler, ray, medium, active)
             active = mi.Mask(active)
             si = scene.ray_intersect(ray, active)
             hit = active & si.is_valid()
             bsdf = si.bsdf(ray)
-            albedo = self._rgb(lambda s: bsdf.eval_diffuse_reflectance(s, hit), mi.SurfaceInteraction3f(si),
-                               reflectance_weights)
-            emitter = scene.environment()
-            if emitter is not None:
-                miss = active & ~hit
-                seen = self._rgb(lambda s: emitter.eval(s, miss), mi.SurfaceInteraction3f(si), radiance_weights)
-                albedo = [dr.select(hit, a, dr.clip(b, 0.0, 1.0)) for a, b in zip(albedo, seen)]
-            normal = si.sh_frame.n
-            offset = si.p - self.origin
-            depth = dr.dot(offset, self.axes[2])
-            passes = [dr.select(active, a, 0.0) for a in albedo]
-            passes += [dr.select(hit, dr.dot(normal, axis), 0.0) for axis in self.axes]
-            passes += [dr.select(hit, depth, 0.0), dr.select(hit, 1.0, 0.0)]
+            diffuse = hit & mi.has_flag(bsdf.flags(), mi.BSDFFlags.Diffuse)
+            albedo = [mi.Float(0.0), mi.Float(0.0), mi.Float(0.0)]
+            fixed = mi.SurfaceInteraction3f(si)
+            for group in range(len(wavelengths)):  # the quadrature: 8 lookups of 4 fixed wavelengths
+                fixed.wavelengths = mi.Spectrum(*(float(w) for w in wavelengths[group]))
+                reflectance = bsdf.eval_diffuse_reflectance(fixed, diffuse)
+                for lane in range(4):
+                    for channel in range(3):
+                        albedo[channel] += float(weights[group, lane, channel]) * reflectance[lane]
+            passes = [dr.select(diffuse, albedo[i], 0.0) for i in range(3)]
+            passes += [dr.select(hit, dr.dot(si.sh_frame.n, axis), 0.0) for axis in self.axes]
+            passes += [dr.select(hit, dr.dot(si.p - self.origin, self.axes[2]), 0.0), dr.select(hit, 1.0, 0.0)]
             return result, valid, list(aovs) + passes
 
         def traverse(self, callback):
@@ -148,11 +135,14 @@ def register() -> None:
 def blender_passes(image: np.ndarray) -> dict[str, np.ndarray]:
     """Blender's passes of a render by ``blender_passes``: ``(H, W, 4 + len(CHANNELS))`` → name → (H, W, C).
 
-    ``Combined`` is the RGBA image; ``Depth`` the hit-weighted mean depth (10¹⁰ where nothing was hit).
+    ``Combined`` is the RGBA image; ``Depth`` the hit-weighted mean depth (10¹⁰ where nothing was hit); the
+    share of a pixel's rays that missed adds the world seen there (the image's colour, clipped to [0, 1])
+    to its albedo, as Cycles' background albedo.
     """
     image = np.asarray(image)
     extra = image[..., 4:4 + len(CHANNELS)]
     hits = extra[..., 7:8]
     depth = np.where(hits > 0, extra[..., 6:7] / np.where(hits > 0, hits, 1.0), BACKGROUND_DEPTH)
-    return {"Combined": image[..., :4], "Denoising Albedo": extra[..., 0:3], "Denoising Normal": extra[..., 3:6],
-            "Depth": depth.astype(np.float32)}
+    albedo = extra[..., 0:3] + (1.0 - hits) * np.clip(image[..., :3], 0.0, 1.0)
+    return {"Combined": image[..., :4], "Denoising Albedo": albedo.astype(np.float32),
+            "Denoising Normal": extra[..., 3:6], "Depth": depth.astype(np.float32)}
