@@ -23,6 +23,7 @@ from ...mitsuba_bridge.scratch import ScratchFormatError
 from ..storage import has_scratches, read_scratches
 from .gather.camera import gather_camera
 from .gather.lights import gather_light
+from .gather.materials import linked_node
 from .gather.meshes import mesh_parts
 from .gather.report import Warnings
 from .gather.world import sky_from_node
@@ -69,12 +70,10 @@ def _world(world):
     None (a uniform colour or black: no glints). Images are not read: this runs as the panel redraws."""
     tree = world.node_tree if world is not None else None
     output = tree.get_output_node("CYCLES") if tree is not None else None
-    background = output.inputs["Surface"].links[0].from_node if output is not None and \
-        output.inputs["Surface"].is_linked else None
+    background = linked_node(output.inputs["Surface"]) if output is not None else None
     if background is None or background.bl_idname != "ShaderNodeBackground":
         return None
-    colour = background.inputs["Color"]
-    source = colour.links[0].from_node if colour.is_linked else None
+    source = linked_node(background.inputs["Color"])
     if source is None:
         return None
     if source.bl_idname == "ShaderNodeTexEnvironment":

@@ -147,3 +147,15 @@ def test_world_volume_is_gathered_beside_the_world_colour(staged):
     description = gather_scene(bpy.context.evaluated_depsgraph_get())
     assert same_volume(description.world_volume, scattering=(0.05,) * 3)
     assert isinstance(description.world, S.ConstantWorld)
+
+
+def test_a_geometry_attribute_inside_a_mesh_volume_is_zero_as_in_cycles(staged):
+    """Cycles reads a mesh's geometry attributes as 0 inside its volume (a cube whose points carry d = 3
+    and an absorption of density d renders clear there): the same here, with a warning naming the node."""
+    mat, node = volume_material("Attr", "ShaderNodeVolumeAbsorption", Color=(0, 0, 0, 1))
+    attribute = mat.node_tree.nodes.new("ShaderNodeAttribute")
+    attribute.attribute_name = "d"
+    mat.node_tree.links.new(attribute.outputs["Fac"], node.inputs["Density"])
+    result, warnings = gathered(staged, mat)
+    assert result.volume.empty
+    assert any("geometry attribute 'd'" in w and "'Attribute'" in w for w in warnings)

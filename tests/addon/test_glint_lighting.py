@@ -103,3 +103,21 @@ def test_check_geometry_against_closed_forms():
         single = scratch.random_scratches(1, seed=2, width=scratch.Constant(4e-6), profile=profile)
         slope = math.atan(2 * 250e-9 / 4e-6) if profile == scratch.Profile.TRIANGULAR else 0.0
         assert glint_reach(single) == pytest.approx(slope + 0.5 * math.asin(2 * 700e-9 / 4e-6))
+
+
+def test_an_environment_map_or_an_emissive_object_counts_as_able(startup_cube):
+    """The panel's check does not read images: an environment map is assumed to hold bright spots that glint,
+    and an emissive object is an extended light; either silences the warning."""
+    world = bpy.context.scene.world
+    tree = world.node_tree
+    environment = tree.nodes.new("ShaderNodeTexEnvironment")
+    environment.image = bpy.data.images.new("sky", 8, 4, float_buffer=True)
+    tree.links.new(environment.outputs["Color"], tree.nodes["Background"].inputs["Color"])
+    assert glint_check(bpy.context, startup_cube).shows
+    tree.nodes.remove(environment)
+    assert not glint_check(bpy.context, startup_cube).shows
+    bpy.ops.mesh.primitive_plane_add(location=(0, 0, 5))
+    glow = bpy.data.materials.new("Glow")
+    glow.node_tree.nodes["Principled BSDF"].inputs["Emission Strength"].default_value = 2.0
+    bpy.context.active_object.data.materials.append(glow)
+    assert glint_check(bpy.context, startup_cube).shows

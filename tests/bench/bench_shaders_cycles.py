@@ -19,8 +19,8 @@ sys.path.insert(0, str(ROOT / "tests" / "addon"))
 
 
 def main(argv=None) -> int:
+    import bpy  # noqa: F401  (first: it makes Blender's own modules importable)
     import addon_utils
-    import bpy  # noqa: F401
     import scratch_iridescence
     from shader_scenes import SHADERS, render
     from test_shaders_cycles import SAMPLES, blurred_l1

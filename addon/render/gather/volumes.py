@@ -13,8 +13,9 @@ per scene unit:
   (Cycles keeps both lobes), with a warning.
 
 Mitsuba's ``homogeneous`` medium is uniform and does not emit: an input that varies in space (an image,
-a checker, noise) is rendered at its mean, with a warning naming the node; emission and blackbody
-are left out, with a warning.
+a checker, noise) is rendered at its mean, with a warning naming the node; a mesh's geometry attribute
+(Attribute node) is 0 inside its volume, as Cycles reads it there; emission and blackbody are left
+out, with a warning.
 """
 from __future__ import annotations
 
@@ -76,6 +77,14 @@ class _VolumeReader:
 
     def input(self, node, name: str, *, colour: bool):
         """Input ``name`` of ``node`` as a number or an RGB array; one that varies in space at its mean."""
+        linked = linked_output(node.inputs[name])
+        if linked is not None and linked[0].bl_idname == "ShaderNodeAttribute" and \
+                linked[0].attribute_type == "GEOMETRY":
+            # A mesh's attributes live on its surface: inside its volume Cycles reads them as 0 (measured).
+            self.warnings.warn(f"{self.owner}: the volume's '{name}' of '{node.name}' reads the geometry attribute "
+                               f"'{linked[0].attribute_name}' ('{linked[0].name}'), which a mesh has only on its "
+                               "surface: 0 inside the volume, as in Cycles", key=(self.owner, node.name, name, "attr"))
+            return np.zeros(3) if colour else 0.0
         value, source = self.values.mean(node, name, colour=colour)
         if source is not None:
             shown = f"{value:.3g}" if not colour else "(" + ", ".join(f"{c:.3g}" for c in value) + ")"
