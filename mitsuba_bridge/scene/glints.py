@@ -3,12 +3,12 @@
 A scratch sends light from a direction l towards the eye v only where the half vector h = (l + v)/|l + v|
 leans away from the surface normal by no more than the scratch's own slopes and diffraction allow: its
 groove's wall slope (atan 2·depth/width for a triangular profile) plus half the angle of its diffraction
-orders (sin θ = n λ / width; docs/model.md §2). A point, spot or sun light, whose light comes from one direction, away from
-the mirror direction of every visible part of the surface, shows no glint anywhere: the render is a dark
-mirror (Blender's startup cube under its point light: the half vector leans 51° or more from every
-face's normal). A uniform world shows none either: the scratches reflect the same radiance as the mirror
-around them. Environment maps, area lights near the mirror direction, a sky's sun there and emissive
-surfaces can.
+orders (sin θ = n λ / width; a segment's diffraction, docs/model.md §3). A point, spot or sun light,
+whose light comes from one direction, away from the mirror direction of every visible part of the
+surface, shows no glint anywhere: the render is a dark mirror (Blender's startup cube under its point
+light: the half vector leans 49° or more from every face's normal). A uniform world shows none either:
+the scratches reflect the same radiance as the mirror around them. Environment maps, area lights near
+the mirror direction, a sky's sun there and emissive surfaces can.
 
 Geometry only (no occlusion, no field of view): a check that errs towards "can", used to tell the artist
 (the object's Scratches panel and the render report) and to place the light that shows them.
@@ -106,7 +106,8 @@ def _light_directions(light, points):
         position, axis = matrix[:3, 3], -matrix[:3, 2] / np.linalg.norm(matrix[:3, 2])
         radius = 0.0
         if isinstance(light, AreaLight):
-            radius = 0.5 * max(light.size_x * np.linalg.norm(matrix[:3, 0]), light.size_y * np.linalg.norm(matrix[:3, 1]))
+            radius = 0.5 * max(light.size_x * np.linalg.norm(matrix[:3, 0]),
+                               light.size_y * np.linalg.norm(matrix[:3, 1]))
         towards = points - position
         distance = np.linalg.norm(towards, axis=1)
         cosine = towards @ axis / np.maximum(distance, 1e-12)

@@ -15,7 +15,8 @@ from scratch_iridescence.addon.render.gather import gather_scene  # noqa: E402
 from scratch_iridescence.addon.render.glints import GLINT_SUN_NAME, glint_check  # noqa: E402
 from scratch_iridescence.mitsuba_bridge import scene as S  # noqa: E402
 from scratch_iridescence.mitsuba_bridge import scratch  # noqa: E402
-from scratch_iridescence.mitsuba_bridge.scene.glints import check_glints, glint_reach, mirror_light_direction  # noqa: E402,E501
+from scratch_iridescence.mitsuba_bridge.scene.glints import (check_glints, glint_reach,  # noqa: E402
+                                                             mirror_light_direction)
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 
