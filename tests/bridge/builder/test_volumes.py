@@ -154,3 +154,37 @@ def test09_instanced_volumes_render_as_copies(variant):
     images = [np.asarray(mi.render(builder.load_scene(description, settings, instancing=instancing), spp=64,
                                    seed=1)) for instancing in (True, False)]
     assert images[0] == pytest.approx(images[1], abs=1e-5)
+
+
+def test10_viewport_session_sees_the_world_volume_in_every_pass_and_rebuilds_for_a_new_volume(variant):
+    """The live viewport's extra sensors (the enlarged first pass, the CPU's strips) start in the world's
+    volume too, and a material whose volume changes is rebuilt (a medium is no BSDF parameter)."""
+    import dataclasses
+
+    from scratch_iridescence.mitsuba_bridge.render.session import Session
+
+    glow = S.Shape("glow", quad(4.0, "glow"), np.eye(4), "glow")
+    smoke = S.Shape("smoke", box((0.5, 0.5, 0.5)), np.eye(4), "smoke")
+    materials = {"glow": S.Emission((1.0, 1.0, 1.0)),
+                 "smoke": S.Volumetric(S.Interface(), S.Volume(absorption=(0.5,) * 3))}
+    camera = S.Camera(camera_at((0, 0, 3)), projection="orthographic", ortho_width=4.0)
+    description = simple_scene(film=S.Film(64, 64), camera=camera, shapes=[glow, smoke], materials=materials,
+                               world=None)
+    description = dataclasses.replace(description, world_volume=S.Volume(absorption=(0.2, 0.2, 0.2)))
+    session = Session(description, S.RenderSettings(max_depth=16), samples=16, strip_pixels=64 * 16)
+    try:
+        preview = session.step(0.0).image  # one sample per pixel of a 16 × 16 film, enlarged
+        while not session.finished:
+            progress = session.step(0.0)
+        assert session.stats["strips"] == 4
+        outside = np.ones((64, 64), bool)
+        outside[24:40, 24:40] = False  # the smoke box's shadow on the glow
+        expected = math.exp(-3 * 0.2)  # without the medium the glow's radiance, 1, would reach the camera
+        for image, samples in ((preview, 16 * 16), (progress.image, 64 * 64 * 16)):
+            seen = image[..., :3].mean(axis=-1)[outside].mean()
+            assert seen == pytest.approx(expected, abs=bernoulli_margin(expected, samples) + 0.01)
+        thicker = S.Volumetric(S.Interface(), S.Volume(absorption=(4.0,) * 3))
+        session.set_material("smoke", thicker)
+        assert session.stats["rebuilds"] == 1
+    finally:
+        session.close()
