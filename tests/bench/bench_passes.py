@@ -14,9 +14,7 @@ import sys
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(ROOT / "tests" / "bridge"))
-sys.path.insert(0, str(ROOT / "tests" / "bridge" / "builder"))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 
 def main() -> None:
@@ -26,22 +24,16 @@ def main() -> None:
     parser.add_argument("--spp", type=int, default=32)
     args = parser.parse_args()
 
-    import dataclasses
-
-    from scratch_iridescence.mitsuba_bridge import builder, scratch
+    from bench_schedule import scratched_plate
+    from scratch_iridescence.mitsuba_bridge import builder
     from scratch_iridescence.mitsuba_bridge import scene as S
     from scratch_iridescence.mitsuba_bridge.render import passes
     from scratch_iridescence.mitsuba_bridge.render.activation import activate
 
     variant = activate("auto")
-    from test_scratched import metal, plate_scene
-
-    scratches = scratch.random_scratches(3000, seed=5, width=scratch.Gaussian(4e-6, 1.3e-6), length=(0.2, 0.6),
-                                         depth=scratch.Gaussian(250e-9, 80e-9), depth_variation=(1.1, 0.04))
     print(f"{variant}, {args.size}² x {args.spp} spp, best of {args.repeat}")
-    for label, material in (("scratched plate", metal(scratches)), ("plain floor", S.Diffuse((0.5, 0.5, 0.5)))):
-        description = plate_scene(material)
-        description = dataclasses.replace(description, film=S.Film(args.size, args.size))
+    for label, material in (("scratched plate", None), ("plain floor", S.Diffuse((0.5, 0.5, 0.5)))):
+        description = scratched_plate(args.size, material)
         scenes = {passes_on: builder.load_scene(description, S.RenderSettings(data_passes=passes_on))
                   for passes_on in (False, True)}
         best = {False: float("inf"), True: float("inf")}
