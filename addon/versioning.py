@@ -19,6 +19,8 @@ from __future__ import annotations
 import bpy
 from bpy.app.handlers import persistent
 
+from .geometry import units
+
 __all__ = ["OLD_OBJECT_KEY", "OLD_SCENE_KEY", "upgrade_file", "upgrade_object", "upgrade_scene"]
 
 OLD_OBJECT_KEY = "scratch"          # Object.scratch (version 0.1)
@@ -29,7 +31,7 @@ NEW_KEY = "scratch_iridescence"
 def _scale_length(obj) -> float:
     """Metres per scene unit of the scene that shows ``obj`` (the first one; 1 when none does)."""
     scenes = list(obj.users_scene) or list(bpy.data.scenes)
-    return float(scenes[0].unit_settings.scale_length) if scenes else 1.0
+    return units.metres_per_unit(scenes[0]) if scenes else 1.0
 
 
 def upgrade_object(obj) -> bool:

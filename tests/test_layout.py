@@ -39,6 +39,27 @@ print(len(names))
     assert int(result.stdout) >= 8
 
 
+def test_the_blender_free_geometry_tests_run_without_blender():
+    # tests/addon/conftest.py leaves out only its own Blender tests where bpy is missing: collected with
+    # Blender blocked, the geometry tests are all there and nothing else of tests/addon.
+    code = f"""
+import importlib.util, sys
+import pytest
+class Block:
+    def find_spec(self, name, path=None, target=None):
+        if name.split('.')[0] in {BLENDER_MODULES!r}:
+            raise ImportError('blocked: ' + name)
+sys.meta_path.insert(0, Block())
+find_spec = importlib.util.find_spec
+importlib.util.find_spec = lambda name, *rest: None if name.split('.')[0] == 'bpy' else find_spec(name, *rest)
+sys.exit(pytest.main(['--collect-only', '-q', '-p', 'no:cacheprovider', 'tests/addon']))
+"""
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT)
+    assert result.returncode == 0, result.stdout + result.stderr
+    collected = [line for line in result.stdout.splitlines() if "::" in line]
+    assert len(collected) >= 50 and all(line.startswith("tests/addon/geometry/") for line in collected), collected[:5]
+
+
 def test_importing_mitsuba_bridge_has_no_side_effects():
     code = "import sys, scratch_iridescence.mitsuba_bridge; print('mitsuba' in sys.modules, 'drjit' in sys.modules)"
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT)
@@ -230,7 +251,7 @@ def test_top_level_layout_is_as_documented():
         pytest.skip("not a git checkout")
     top = {path.split("/")[0] for path in tracked}
     assert top <= {"addon", "blender_manifest.toml", "mitsuba_bridge", "scenes", "tests", "docs", "README.md",
-                   "pyproject.toml", "Makefile", ".ci", ".gitignore", "__init__.py", "farm"}, top
+                   "pyproject.toml", "Makefile", ".ci", ".gitignore", "__init__.py", "LICENSE", "farm"}, top
     assert len((ROOT / "__init__.py").read_text().strip().splitlines()) == 3
 
 

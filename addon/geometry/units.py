@@ -14,7 +14,7 @@ import sys
 
 from ...mitsuba_bridge.errors import ScratchUserError
 
-__all__ = ["NM", "format_length", "available_memory", "MemoryLimitError", "check_memory"]
+__all__ = ["NM", "format_length", "metres_per_unit", "available_memory", "MemoryLimitError", "check_memory"]
 
 #: Metres per nanometre.
 NM = 1e-9
@@ -34,6 +34,12 @@ def format_length(metres: float, digits: int = 3) -> str:
             value = metres / scale
             return f"{value:.{digits}g} {unit}"
     raise AssertionError("unreachable")
+
+
+def metres_per_unit(scene) -> float:
+    """Metres per scene unit of ``scene`` (its ``unit_settings.scale_length``; 1 where that is 0): the one
+    reading of the unit scale, for the editor, the render and old files alike."""
+    return float(scene.unit_settings.scale_length) or 1.0
 
 
 class MemoryLimitError(ScratchUserError, MemoryError):

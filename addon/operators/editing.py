@@ -11,6 +11,7 @@ import math
 from ...mitsuba_bridge.errors import ParameterError, ScratchUserError
 from ...mitsuba_bridge.scratch import ScratchSet
 from .. import storage
+from ..geometry import units
 
 __all__ = ["USER_ERRORS", "ObjectModeOperator", "combine", "write", "metres_per_unit", "plural", "fail",
            "warn_relaxed_arcs", "check_numbers"]
@@ -66,8 +67,8 @@ def write(obj, scratches: ScratchSet) -> bytes:
 
 
 def metres_per_unit(context) -> float:
-    """Metres per scene unit (the scene's unit scale)."""
-    return float(context.scene.unit_settings.scale_length) or 1.0
+    """Metres per scene unit of the context's scene (:func:`..geometry.units.metres_per_unit`)."""
+    return units.metres_per_unit(context.scene)
 
 
 def plural(count: int, word: str = "scratch") -> str:

@@ -35,11 +35,12 @@ import numpy as np
 
 from ...mitsuba_bridge.render.session import Change, Update
 from ...mitsuba_bridge.scratch import ScratchFormatError, ScratchSet
+from ..geometry import units
 from ..storage import has_scratches, read_scratches, scratch_token
-from .gather import GEOMETRY_TYPES, Warnings, gather_settings, scratched_metal
+from .gather import GEOMETRY_TYPES, Warnings, gather_settings, renderable_instances, scratched_metal
 from .gather.lights import gather_light
 from .gather.materials import gather_material
-from .gather.world import gather_world
+from .gather.world import gather_world, gather_world_volume
 
 __all__ = ["SyncState", "snapshot", "classify", "same", "settings_key"]
 
@@ -65,6 +66,7 @@ class SyncState:
     shape_names: tuple  #: names of the description's shapes, in order
     instanced: bool  #: some geometry comes from instancers (always rebuilt)
     warnings: list = field(default_factory=list)
+    world_volume: object = None  #: the world's Volume of the description (a change rebuilds: it is every medium)
 
 
 def same(a, b) -> bool:
@@ -88,7 +90,7 @@ def settings_key(scene) -> tuple:
     """Everything of the scene's settings that needs a new session when it changes."""
     render = scene.scratch_iridescence
     return (gather_settings(scene), render.film_filter, bool(scene.render.film_transparent),
-            float(scene.unit_settings.scale_length), int(render.viewport_samples),
+            units.metres_per_unit(scene), int(render.viewport_samples),
             int(render.viewport_start_divisor), bool(render.viewport_freeze))
 
 
@@ -114,14 +116,11 @@ def _object_state(obj) -> ObjectState:
 def _renderable(depsgraph):
     """(objects by name, lights in gather order, whether instancers add geometry) of the depsgraph."""
     objects, lights, instanced = {}, [], False
-    for instance in depsgraph.object_instances:
-        obj = instance.object
-        if obj.original.hide_render:
-            continue
+    for obj, matrix, is_instance in renderable_instances(depsgraph):
         if obj.type == "LIGHT":
-            lights.append((obj, np.array(instance.matrix_world)))
+            lights.append((obj, matrix))
         elif obj.type in GEOMETRY_TYPES:
-            if instance.is_instance:
+            if is_instance:
                 instanced = True
             else:
                 objects[obj.name] = obj
@@ -141,7 +140,8 @@ def snapshot(depsgraph, description) -> SyncState:
                      objects={name: _object_state(obj) for name, obj in objects.items()},
                      lights=_gather_lights(lights, warnings), world=description.world,
                      materials=dict(description.materials),
-                     shape_names=tuple(shape.name for shape in description.shapes), instanced=instanced)
+                     shape_names=tuple(shape.name for shape in description.shapes), instanced=instanced,
+                     world_volume=description.world_volume)
 
 
 def _shapes_of(state: SyncState, name: str) -> list[str]:
@@ -195,6 +195,8 @@ def classify(depsgraph, state: SyncState) -> list[Update]:
     if world_changed:
         world = gather_world(depsgraph.scene.world, warnings)
         if (world is None) != (state.world is None):
+            return build
+        if not same(gather_world_volume(depsgraph.scene.world, warnings), state.world_volume):
             return build
         if not same(world, state.world):
             updates.append(Update(Change.WORLD, (world,)))

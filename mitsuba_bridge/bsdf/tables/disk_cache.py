@@ -78,16 +78,21 @@ def limit_bytes() -> int:
     return int(max(megabytes, 0.0) * 1024 * 1024)
 
 
+def fingerprinted_sources() -> list[Path]:
+    """The sources :func:`code_fingerprint` digests: every module of ``bsdf/`` and ``scratch/``, subfolders included."""
+    package = Path(__file__).resolve().parents[2]  # mitsuba_bridge
+    return [source for folder in ("bsdf", "scratch") for source in sorted((package / folder).rglob("*.py"))]
+
+
 def code_fingerprint() -> str:
     """A digest of the source of the modules that build and read scratch tables, and numpy's version."""
     global _fingerprint
     if _fingerprint is None:
         digest = hashlib.blake2b(f"{FORMAT}:{np.__version__}".encode(), digest_size=16)
-        package = Path(__file__).resolve().parent.parent  # mitsuba_bridge
-        for folder in ("bsdf", "scratch"):
-            for source in sorted((package / folder).glob("*.py")):
-                digest.update(source.name.encode())
-                digest.update(source.read_bytes())
+        package = Path(__file__).resolve().parents[2]
+        for source in fingerprinted_sources():
+            digest.update(source.relative_to(package).as_posix().encode())
+            digest.update(source.read_bytes())
         _fingerprint = digest.hexdigest()
     return _fingerprint
 

@@ -12,7 +12,7 @@ import mitsuba as mi
 import numpy as np
 import pytest
 
-from scratch_iridescence.mitsuba_bridge.bsdf import lookup
+from scratch_iridescence.mitsuba_bridge.bsdf.tables import scan
 from scratch_iridescence.mitsuba_bridge.bsdf.lookup import Grid, LocalJacobian, for_each_segment
 from scratch_iridescence.mitsuba_bridge.bsdf.tables.grid import build_tables
 from scratch_iridescence.mitsuba_bridge.bsdf.tables.scan import BUCKET_REFERENCES, offset_buckets
@@ -64,7 +64,7 @@ def test01_every_piece_in_the_window_is_visited_once(name, window_cells, buckete
     grid = Grid.upload(tables)
     if bucketed != grid.bucketed:  # the other scan's arrays: upload as the other kind of set would
         with pytest.MonkeyPatch.context() as patch:
-            patch.setattr(lookup, "BUCKETED_ABOVE", -1 if bucketed else 1e30)
+            patch.setattr(scan, "BUCKETED_ABOVE", -1 if bucketed else 1e30)
             grid = Grid.upload(tables)
     assert grid.bucketed == bucketed
     rng = np.random.default_rng(7)

@@ -175,3 +175,11 @@ def test05_the_size_limit_removes_the_least_recently_used_files(cache, monkeypat
     assert sum(p.stat().st_size for p in left) <= disk_cache.limit_bytes()
     monkeypatch.setenv("SCRATCH_IRIDESCENCE_CACHE_MB", "not a number")
     assert disk_cache.limit_bytes() == disk_cache.DEFAULT_LIMIT_MB * 2 ** 20
+
+
+def test_the_code_fingerprint_covers_every_table_and_kernel_module():
+    """A change to any module that builds or reads the tables (subfolders included) is a new cache key."""
+    sources = disk_cache.fingerprinted_sources()
+    folders = {source.parent.name for source in sources}
+    assert {"bsdf", "tables", "maths", "periodic", "heightfield", "scratch"} <= folders, folders
+    assert any(source.parent.name == "tables" and source.name == "grid.py" for source in sources)
