@@ -8,8 +8,10 @@ it once into its cache, ``<cache>/<digest>/``, and every later render of the
 same files finds it there: nothing is sent again, whichever driver asks.
 
 * **Where**: ``SCRATCH_IRIDESCENCE_SCENE_CACHE_DIR``, else the platform's cache
-  folder under ``scratch-iridescence/scenes`` (beside the scratch tables'
-  cache, :mod:`...bsdf.tables.disk_cache`).  Workers on one machine share it.
+  folder (``platformdirs``: ``$XDG_CACHE_HOME`` or ``~/.cache`` on Linux,
+  ``~/Library/Caches`` on macOS, ``%LOCALAPPDATA%`` on Windows) under
+  ``scratch-iridescence/scenes``, beside the scratch tables' cache
+  (:mod:`...bsdf.tables.disk_cache`).  Workers on one machine share it.
 * **Size**: at most ``SCRATCH_IRIDESCENCE_SCENE_CACHE_MB`` (default
   :data:`DEFAULT_LIMIT_MB`); the least recently used scenes go first.
 * **Safety**: a bundle is unpacked into a temporary sibling, its fingerprint is
@@ -27,7 +29,7 @@ import zipfile
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
 
-from ..files.places import entry_files, user_cache_folder
+from ..files.entries import entry_files
 from ..folder.export import EXPORTED_ENTRIES, SCENE_FILE
 from ..render.parts import scene_fingerprint
 
@@ -89,7 +91,11 @@ def pack_file(path) -> SceneBundle:
 def cache_directory() -> Path:
     """The worker's scene cache: ``SCRATCH_IRIDESCENCE_SCENE_CACHE_DIR``, else the platform's cache folder."""
     chosen = os.environ.get("SCRATCH_IRIDESCENCE_SCENE_CACHE_DIR", "")
-    return Path(chosen) if chosen else user_cache_folder("scenes")
+    if chosen:
+        return Path(chosen)
+    import platformdirs  # the cluster extra's; ~/.cache/scratch-iridescence on Linux, as the tables' cache
+
+    return platformdirs.user_cache_path("scratch-iridescence", appauthor=False, opinion=False) / "scenes"
 
 
 def cached_scene(digest: str) -> Path | None:

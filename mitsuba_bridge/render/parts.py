@@ -52,7 +52,7 @@ class RenderIdentity:
 
 def scene_fingerprint(folder, entries: tuple[str, ...]) -> str:
     """SHA-256 (hex) of the named entries of an export folder: names, sizes and bytes of every file."""
-    from ..files.places import entry_files
+    from ..files.entries import entry_files
 
     folder = Path(folder)
     digest = hashlib.sha256()

@@ -34,6 +34,7 @@ import hashlib
 import json
 import logging
 import os
+import sys
 import tempfile
 import threading
 import time
@@ -64,9 +65,13 @@ def directory() -> Path | None:
         return None
     if chosen:
         return Path(chosen)
-    from ...files.places import user_cache_folder
-
-    return user_cache_folder("tables")
+    if sys.platform == "win32":
+        base = Path(os.environ.get("LOCALAPPDATA") or Path.home() / "AppData" / "Local")
+    elif sys.platform == "darwin":
+        base = Path.home() / "Library" / "Caches"
+    else:
+        base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+    return base / "scratch-iridescence" / "tables"
 
 
 def limit_bytes() -> int:
