@@ -37,7 +37,8 @@ from .progress import ClusterProgress
 from .reduce import NodeReducer, task_nodes
 from .scenes import SceneBundle
 
-__all__ = ["ClusterError", "connect", "Cluster", "MAX_TASKS_PER_WORKER", "GPU_RESOURCE"]
+__all__ = ["ClusterError", "connect", "local_cluster", "LOCAL_WORKER_CONFIG", "Cluster", "MAX_TASKS_PER_WORKER",
+           "GPU_RESOURCE"]
 
 #: Tasks per worker above which chunks are grouped (a schedule of 2**20 chunks is not 2**20 tasks).
 MAX_TASKS_PER_WORKER = 64
@@ -51,13 +52,22 @@ class ClusterError(ScratchUserError):
     """A render on a cluster that cannot start or finish; the message says what to do."""
 
 
-def _local_cluster(workers: int):
+#: Dask settings of ``local:N`` workers: no statistical profiler (it samples every thread's stack every 10 ms,
+#: about half of an idle worker's CPU time, and a render task's stack says nothing the progress lines do not).
+LOCAL_WORKER_CONFIG = {"distributed.worker.profile.enabled": False}
+
+
+def local_cluster(workers: int):
+    """The ``LocalCluster`` of ``--cluster local:N``: ``workers`` processes of one task thread each."""
+    import dask
     from distributed import LocalCluster
 
     threads = max(1, (os.cpu_count() or 1) // workers)
-    # One render thread per worker process (Dr.Jit has its own pool), sized to share the cores.
-    return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
-                        silence_logs=logging.ERROR, env={tasks.THREADS_VARIABLE: str(threads)})
+    # One render thread per worker process (Dr.Jit has its own pool), sized to share the cores.  The nannies
+    # hand the configuration they were made under to their worker processes.
+    with dask.config.set(LOCAL_WORKER_CONFIG):
+        return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
+                            silence_logs=logging.ERROR, env={tasks.THREADS_VARIABLE: str(threads)})
 
 
 @contextlib.contextmanager
@@ -76,7 +86,7 @@ def connect(address: str) -> Iterator["Cluster"]:
             workers = 0
         if workers < 1:
             raise ClusterError(f"--cluster {address}: expected local:N with N >= 1 worker processes")
-        local = _local_cluster(workers)
+        local = local_cluster(workers)
         client = Client(local)
     else:
         try:

@@ -9,7 +9,7 @@ import pytest
 
 from cluster_scenes import VARIANT, export_scene, one_process_render, worker_sys_path
 from scratch_iridescence.mitsuba_bridge.cluster import scenes, tasks
-from scratch_iridescence.mitsuba_bridge.cluster.driver import Cluster
+from scratch_iridescence.mitsuba_bridge.cluster.driver import LOCAL_WORKER_CONFIG, Cluster, local_cluster
 from scratch_iridescence.mitsuba_bridge.cluster.identity import software_identity
 
 SPP, SEED = 31, 3  # 32 x 24 pixels: nine chunks (7 of 4 spp, then 2 and 1): an uneven tree
@@ -17,10 +17,10 @@ SPP, SEED = 31, 3  # 32 x 24 pixels: nine chunks (7 of 4 spp, then 2 and 1): an 
 
 @pytest.fixture(scope="module")
 def cluster(variant):
-    from distributed import Client, LocalCluster
+    from distributed import Client
 
     with worker_sys_path():
-        local = LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None)
+        local = local_cluster(2)  # what --cluster local:2 starts
     with local, Client(local) as client:
         yield Cluster(client, software_identity())
 
@@ -51,6 +51,18 @@ def test02_a_scene_reaches_each_worker_once(cluster, tmp_path):
     assert cluster.scene_bytes_sent - sent == workers * bundle.size_bytes  # nothing more
     assert sum(counts["bytes"] for counts in cluster.client.run(tasks.transfer_counts).values()) == received
     assert second.image.tobytes() == first.image.tobytes()
+
+
+def worker_settings(keys):
+    import dask
+
+    return {key: dask.config.get(key) for key in keys}
+
+
+def test02b_local_workers_run_without_dasks_profiler(cluster):
+    """The nannies hand the driver's settings to the worker processes: no stack sampling every 10 ms."""
+    settings = cluster.client.run(worker_settings, list(LOCAL_WORKER_CONFIG))
+    assert len(settings) == 2 and all(found == LOCAL_WORKER_CONFIG for found in settings.values()), settings
 
 
 @pytest.mark.slow
