@@ -162,14 +162,28 @@ def sixty_four_workers(workers: int, seconds: float, per_worker: int, pixels: in
     import signal
 
     import numpy as np
+    import dask
     from distributed import Client, as_completed, wait
 
+    from scratch_iridescence.mitsuba_bridge.cluster.driver import LOCAL_WORKER_CONFIG  # no Mitsuba, no thread
+
+    # Patient connections on a shared machine (Dask's defaults give up after 30 s): in this process, the forked
+    # workers (they inherit it) and the scheduler (by environment, as Dask reads its configuration).
+    patience = {"distributed.comm.timeouts.connect": "300s", "distributed.comm.timeouts.tcp": "300s"}
+    # 64 workers share two cores here, where on a farm each has its machine: the workers leave out what costs
+    # CPU while they idle (the profiler's stack samples every 10 ms, as local:N workers do; the system monitor's
+    # twice a second), or 64 of them would keep the cores busy by themselves (45 ms CPU per second each, measured).
+    lean = {**LOCAL_WORKER_CONFIG, "distributed.admin.system-monitor.interval": "10s",
+            "distributed.admin.system-monitor.disk": False}
+    dask.config.set({**patience, **lean})
+    environment = {**os.environ, **{"DASK_" + key.upper().replace(".", "__").replace("-", "_"): value
+                                    for key, value in patience.items()}}
     started = time.perf_counter()
     with tempfile.TemporaryDirectory() as work:
         scheduler_file = Path(work) / "scheduler.json"
         scheduler = subprocess.Popen([str(Path(sys.executable).parent / "dask"), "scheduler", "--host", "127.0.0.1",
                                       "--port", "0", "--no-dashboard", "--scheduler-file", str(scheduler_file)],
-                                     stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                                     stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=environment)
         pids = []
         try:
             while not scheduler_file.exists():
