@@ -9,7 +9,8 @@
    per task and worker.
 3. **Scene bytes per worker**: a fresh scene cache, one render, then the same render again.
 4. **Scheduling at 64 workers**: 64 worker processes on this machine (forked from this one, on a scheduler
-   started with ``dask scheduler``); each task sleeps a fixed time
+   started with ``dask scheduler``; without the profiler and with a slow system monitor, since 64 idle workers
+   sharing two cores would otherwise load them as no farm machine's own worker does); each task sleeps a fixed time
    standing in for a chunk and returns a chunk-sized image, which the driver adds as the renders do
    (:class:`NodeReducer`).  Efficiency = ideal time (tasks x sleep / 64) / wall time; target >= 90 %.
 
