@@ -3,7 +3,8 @@
 1. **Overhead**: the exported scratched plate (3 000 scratches, the one of bench_schedule.py) rendered by
    ``render FOLDER`` in one process and by ``render FOLDER --cluster local:2`` (two worker processes of one
    render thread each, which share the machine's cores), each a fresh command (wall time: start, load,
-   render, write), alternately, with Dr.Jit's kernel cache warm for both.  Target: the cluster's wall time
+   render, write), alternately, with Dr.Jit's kernel cache warm for both; and, as the split without Dask,
+   ``render --chunk 1/2`` and ``--chunk 2/2`` at once followed by ``merge``.  Target: the cluster's wall time
    within 1.15 x the one process's for a render of 30 s or more; the images must be the same bits.
 2. **Per-task overhead**: 400 empty tasks through a two-worker LocalCluster (submit, run, result),
    per task and worker.
@@ -62,19 +63,40 @@ def command(folder, output, spp, *extra) -> tuple[float, float]:
                                          - before.children_user - before.children_system)
 
 
+def split_commands(folder, work: Path, spp: int) -> tuple[float, float]:
+    """(wall, CPU seconds) of ``render --chunk 1/2`` and ``--chunk 2/2`` run at once, then ``merge``: the same
+    split over two processes without Dask."""
+    before, start = os.times(), time.perf_counter()
+    base = [sys.executable, "-m", "scratch_iridescence.mitsuba_bridge"]
+    parts = [subprocess.Popen(base + ["render", str(folder), "-o", str(work / f"part_{k}.exr"), "--spp", str(spp),
+                                      "--variant", "llvm_ad_spectral", "-q", "--chunk", f"{k}/2"],
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL) for k in (1, 2)]
+    assert all(part.wait() == 0 for part in parts)
+    subprocess.run(base + ["merge", str(work / "part_1.exr"), str(work / "part_2.exr"), "-o", str(work / "split.exr")],
+                   check=True, capture_output=True)
+    after = os.times()
+    return time.perf_counter() - start, (after.children_user + after.children_system
+                                         - before.children_user - before.children_system)
+
+
 def overhead(folder: Path, work: Path, spp: int, rounds: int) -> None:
     command(folder, work / "warm.exr", 4)  # kernels of this scene compiled once (both runs then find them cached)
     command(folder, work / "warm2.exr", 4, "--cluster", "local:2")
-    ones, clusters = [], []
-    for _ in range(rounds):  # alternately, so that both meet the same load
+    from scratch_iridescence.mitsuba_bridge.files.exr import read_exr
+
+    ones, clusters, splits = [], [], []
+    for _ in range(rounds):  # alternately, so that all meet the same load
         ones.append(command(folder, work / "one.exr", spp))
         clusters.append(command(folder, work / "cluster.exr", spp, "--cluster", "local:2"))
+        splits.append(split_commands(folder, work, spp))
     same = (work / "one.exr").read_bytes() == (work / "cluster.exr").read_bytes()
-    wall = [min(w for w, _ in runs) for runs in (ones, clusters)]
-    cpu = [min(c for _, c in runs) for runs in (ones, clusters)]
+    same_split = read_exr(work / "one.exr").tobytes() == read_exr(work / "split.exr").tobytes()
+    wall = [min(w for w, _ in runs) for runs in (ones, clusters, splits)]
+    cpu = [min(c for _, c in runs) for runs in (ones, clusters, splits)]
     print(f"1. overhead (best of {rounds}): wall one process {wall[0]:.1f} s, --cluster local:2 {wall[1]:.1f} s: "
           f"{wall[1] / wall[0]:.3f} x (target <= 1.15); CPU {cpu[0]:.1f} s vs {cpu[1]:.1f} s: {cpu[1] / cpu[0]:.3f} x; "
-          f"same bits: {same}")
+          f"same bits: {same}\n   two --chunk K/2 processes at once + merge, no Dask: wall {wall[2]:.1f} s "
+          f"({wall[2] / wall[0]:.3f} x), CPU {cpu[2]:.1f} s ({cpu[2] / cpu[0]:.3f} x); same pixels: {same_split}")
 
 
 def noop(value):
