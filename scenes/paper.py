@@ -42,7 +42,8 @@ from ..mitsuba_bridge.render.passes import TRACED_NOTE_PREFIX
 __all__ = ["FIGURE_MODULES", "figures", "main"]
 
 #: The figure modules, in the gallery's order.
-FIGURE_MODULES = ("fig07_plate", "fig06_cd", "fig09_grating", "fig10_base", "fig17_profile", "fig01_table")
+FIGURE_MODULES = ("fig07_plate", "fig06_cd", "fig09_grating", "fig10_base", "fig17_profile", "fig01_table",
+                  "fig11_table", "fig01_door", "fig06_spoon", "fig07_disc", "fig08_cd", "fig12_ring", "fig12_plate")
 
 _PACKAGE = __package__  # scratch_iridescence.scenes
 
