@@ -68,12 +68,12 @@ def painted_strokes(rng: np.random.Generator):
         start = rng.uniform(0.0, 2.0 * np.pi)
         a = np.linspace(start, start + rng.uniform(1.0, 2.0) * np.pi, 40)
         points = np.column_stack([BOWL_CENTRE_M + 0.024 * radius * np.cos(a), radius * np.sin(a)])
-        strokes.append(("SPRAY", points, dict(radius=0.004, density=120.0, jitter=math.radians(15))))
+        strokes.append(("SPRAY", points, dict(radius=0.004, density=300.0, jitter=math.radians(15))))
     for _ in range(6):  # the drawer: along the handle
         t0 = rng.uniform(-0.6, 0.6)
         x = np.linspace(rng.uniform(0.065, 0.10), rng.uniform(0.14, 0.185), 16)
         points = np.column_stack([x, np.clip(t0 + 0.1 * rng.normal() * (x - x[0]) / 0.1, -0.8, 0.8)])
-        strokes.append(("SPRAY", points, dict(radius=0.003, density=150.0, jitter=math.radians(8))))
+        strokes.append(("SPRAY", points, dict(radius=0.003, density=300.0, jitter=math.radians(8))))
     for _ in range(4):  # long single scratches
         x = np.linspace(rng.uniform(0.01, 0.05), rng.uniform(0.09, 0.17), 24)
         points = np.column_stack([x, np.clip(rng.uniform(-0.5, 0.5) + 0.2 * np.sin(x * 40.0), -0.9, 0.9)])

@@ -28,8 +28,9 @@ LOOKS = dict(depth_distribution="GAUSSIAN", depth_mean=500.0, depth_std=0.0,
 #: Inner radius, width, thickness (metres) and the mesh's quads around and across the band.
 RING = dict(radius_m=0.0085, width_m=0.006, thickness_m=0.002, segments=192, sections=48)
 LENGTHS_M = (0.0004, 0.0016)
-#: The spray strokes: circles around the band at these heights across its outer face (metres from its middle).
-STROKE_HEIGHTS_M = (-0.0022, -0.0011, 0.0, 0.0011, 0.0022)
+#: The spray strokes: circles around the band on its outer face (v = 0.5 its centre line, ±0.09 about 2.2 mm
+#: from it towards the edges; shapes.ring_surface).
+STROKE_V = (0.41, 0.455, 0.5, 0.545, 0.59)
 STROKE_TURNS = 2            # each stroke goes this many times around
 SPRAY = dict(radius=0.001, density=120.0, jitter=math.radians(12))
 #: (elevation, azimuth) in degrees of the lamp and the camera, seen from the ring (azimuth 0: +Y, 90: +X)
@@ -57,18 +58,15 @@ FIGURE = Figure(
 )
 
 
-def spray_strokes(ring=RING, heights_m=STROKE_HEIGHTS_M, turns: int = STROKE_TURNS, points_per_turn: int = 96):
-    """World-space stroke points (metres) on the band's outer face, one circle per height, ``turns`` times
-    around (the ring lies on its side, its middle at z = 0)."""
-    outer = ring["radius_m"] + ring["thickness_m"]
+def spray_strokes(ring=RING, stroke_v=STROKE_V, turns: int = STROKE_TURNS, points_per_turn: int = 96):
+    """World-space stroke points (metres) on the band's outer face, one circle per value of the cross-section
+    parameter v (:func:`.shapes.ring_surface`), ``turns`` times around (the ring's middle at z = 0)."""
+    from .shapes import ring_surface
+
     strokes = []
-    for index, height in enumerate(heights_m):
-        angle = 2.0 * np.pi * (index / len(heights_m) + np.linspace(0.0, turns, turns * points_per_turn + 1))
-        # the outer face is rounded towards its edges: follow it inwards there (squareness 4)
-        across = (2.0 * abs(height) / ring["width_m"]) ** 2
-        radius = ring["radius_m"] + 0.5 * ring["thickness_m"] * (1.0 + (1.0 - across ** 2) ** 0.25)
-        radius = min(radius, outer)
-        strokes.append(np.column_stack([radius * np.cos(angle), radius * np.sin(angle), np.full_like(angle, height)]))
+    for index, v in enumerate(stroke_v):
+        u = index / len(stroke_v) + np.linspace(0.0, turns, turns * points_per_turn + 1)
+        strokes.append(ring_surface(u, v, ring["radius_m"], ring["width_m"], ring["thickness_m"]))
     return strokes
 
 

@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-__all__ = ["grid_object", "annulus_grid", "ring_grid", "spoon_surface", "spoon_grid", "door_panels", "panel_rise", "panel_door_grid",
+__all__ = ["grid_object", "annulus_grid", "ring_surface", "ring_grid", "spoon_surface", "spoon_grid", "door_panels", "panel_rise", "panel_door_grid",
            "door_relief", "polar_annulus", "ring", "spoon", "door", "box"]
 
 
@@ -103,27 +103,34 @@ def annulus_grid(inner_m: float, outer_m: float, segments: int, rings: int):
     return points, uv
 
 
-def ring_grid(radius_m: float, width_m: float, thickness_m: float, segments: int, sections: int,
-              squareness: float = 4.0):
-    """A finger ring: a band around the Z axis whose cross-section is a rounded rectangle (a superellipse).
+def ring_surface(u, v, radius_m: float, width_m: float, thickness_m: float, squareness: float = 4.0):
+    """Points of a finger ring lying on its side (axis Z, middle at z = 0) at parameters (``u``, ``v``);
+    broadcasts.
 
+    A band whose cross-section is a rounded rectangle (a superellipse):
     ``radius_m`` is the inner radius (the finger's), ``width_m`` the band's
     width along Z, ``thickness_m`` its radial thickness; ``squareness`` the
     superellipse exponent (2: an elliptic tube, large: a flat band with
-    sharp edges).  u goes around the ring (the circumference), v around the
-    cross-section, starting on the inner face's centre line (the finger's
-    side, where the seam shows least).
+    sharp edges).  u goes around the ring (the circumference, from +X
+    counter-clockwise), v around the cross-section, starting on the inner
+    face's centre line (the finger's side, where a seam shows least).
     """
-    u = np.linspace(0.0, 1.0, segments + 1)
-    v = np.linspace(0.0, 1.0, sections + 1)
-    angle = 2.0 * np.pi * u[:, None]
-    phi = 2.0 * np.pi * v[None, :] + np.pi
+    angle = 2.0 * np.pi * np.asarray(u, dtype=np.float64)
+    phi = 2.0 * np.pi * np.asarray(v, dtype=np.float64) + np.pi
     power = 2.0 / squareness
     radial = 0.5 * thickness_m * np.sign(np.cos(phi)) * np.abs(np.cos(phi)) ** power
     axial = 0.5 * width_m * np.sign(np.sin(phi)) * np.abs(np.sin(phi)) ** power
     distance = radius_m + 0.5 * thickness_m + radial
-    x, y = distance * np.cos(angle), distance * np.sin(angle)
-    points = np.stack([x, y, np.broadcast_to(axial, x.shape)], axis=-1)
+    x, y, z = np.broadcast_arrays(distance * np.cos(angle), distance * np.sin(angle), axial)
+    return np.stack([x, y, z], axis=-1)
+
+
+def ring_grid(radius_m: float, width_m: float, thickness_m: float, segments: int, sections: int,
+              squareness: float = 4.0):
+    """:func:`ring_surface` on a grid of ``segments`` quads around the ring and ``sections`` around the band."""
+    u = np.linspace(0.0, 1.0, segments + 1)
+    v = np.linspace(0.0, 1.0, sections + 1)
+    points = ring_surface(u[:, None], v[None, :], radius_m, width_m, thickness_m, squareness)
     uv = np.stack(np.meshgrid(u, v, indexing="ij"), axis=-1)
     return points, uv
 
