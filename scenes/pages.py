@@ -13,7 +13,7 @@ import shutil
 import time
 from pathlib import Path
 
-from .figure import PAPER_CORES, PAPER_SPP
+from .figure import PAPER_CORES, PAPER_SPP, PAPER_WAVELENGTHS
 
 __all__ = ["write", "load_records", "load_reference", "benchmark_rows"]
 
@@ -68,6 +68,10 @@ def benchmark_rows(figures, records: dict) -> list[dict]:
                 "passes_per_core_s": samples / max(record["render_cpu_s"] - setup_s, 1e-9),
                 "paper_minutes": render.paper_minutes, "paper_mp": render.paper_megapixels,
                 "paper_per_core_s": render.paper_samples_per_core_second,
+                "paper_wavelengths": render.paper_wavelengths, "wavelength_factor": render.wavelength_factor,
+                # spp and seconds at which the footprint-filtered BSDF reaches this picture's noise (None: not
+                # measured yet; the filter is being built)
+                "filtered": record.get("filtered_same_noise"),
                 "peak_mb": record["peak_mb"], "load_s": record["scratch_load_s"],
                 "tables_read": record.get("tables_read"), "tables_built": record.get("tables_built"),
                 "scratches": record["scratches"], "segments": record["segments"],
@@ -109,8 +113,10 @@ def _figure_section(module, figure, records: dict) -> list[str]:
               "|---|---|---|---|"]
     for render, record in done:
         paper_res = "4 MP" if render.paper_megapixels == 4.0 else f"{render.paper_megapixels:g} MP"
-        paper = f"{render.paper_minutes:g} min at {paper_res} × {PAPER_SPP} spp" if render.paper_minutes else \
-            "— (beyond the paper)"
+        wavelengths = "" if render.paper_wavelengths == PAPER_WAVELENGTHS else \
+            f", {render.paper_wavelengths} wavelengths per sample"
+        paper = f"{render.paper_minutes:g} min at {paper_res} × {PAPER_SPP} spp{wavelengths}" \
+            if render.paper_minutes else "— (beyond the paper)"
         lines.append(f"| {render.name} | {record['width']} × {record['height']} × {record['spp']} | "
                      f"{record['build_s']:.1f} s + {record['render_s']:.0f} s | {paper} |")
     return lines + [""]
@@ -241,6 +247,13 @@ def _tables_source(row: dict) -> str:
     return "built" if not read else "built and read"
 
 
+def _filtered(measured: dict | None) -> str:
+    """The footprint-filtered BSDF's spp for this picture's noise and its render time, or "—" (not measured)."""
+    if not measured:
+        return "—"
+    return f"{measured['spp']} spp ({_minutes(measured['render_s'])})"
+
+
 def _reference_lines(rows: list[dict]) -> list[str]:
     references = [r["reference"] for r in rows if r["reference"]]
     runs = list({json.dumps(reference, sort_keys=True): reference for reference in references}.values())
@@ -269,29 +282,33 @@ def _benchmarks(figures, records: dict) -> str:
              "(`bpy.ops.render.render`), CPU variant `llvm_ad_spectral`.", "",
              "**Samples per core-second** = pixels × spp / CPU seconds of the render call. The paper's figure "
              f"comes from the supplement's times on {PAPER_CORES} cores: pixels × {PAPER_SPP} spp / (minutes × 60 "
-             f"× {PAPER_CORES}), 4 MP unless noted. The paper traced 16 wavelengths per sample, we trace 4 per "
-             "path (hero wavelength sampling, docs/model.md §5–6), so one of our samples carries a quarter of the "
-             "spectral information of one of theirs: per wavelength sample, divide the ratio by 4. The render "
+             f"× {PAPER_CORES}), 4 MP unless noted. The paper traced 16 wavelengths per sample (3 for Fig. 12), "
+             "we trace 4 per path (hero wavelength sampling, docs/model.md §5–6), so one of our samples carries a "
+             "quarter of the spectral information of one of theirs (4/3 of one of Fig. 12's): per wavelength "
+             "sample, multiply the ratio by 4/N_λ. The render "
              "call includes gathering the scene, building the scratch tables and compiling the kernels; "
              "*passes only* charges that set-up (mostly one thread) to one core and counts the rest. Kernels and "
              "tables come from their caches where an earlier render of the same scene compiled or built them, as "
              "for any render after a user's first: column *tables* says whether this render built them or read "
              "them from the disk cache (docs/rendering.md); *scratch set → BSDF* is the build's own time either "
              "way.", "",
-             "**Per wavelength sample** is that ratio divided by 4; the target (issue 12) is at least 2× "
+             "**Per wavelength sample** is that ratio times 4/N_λ (N_λ: the paper's wavelengths per sample, 16 "
+             "unless the *paper* column says otherwise); the target (issue 12) is at least 2× "
              "the paper per core and per wavelength sample on every scene. Renders beyond the paper (options the "
              "paper does not have) have no paper time.", "",
              *_reference_lines(rows),
              "| picture | pixels × spp | render (wall) | of it passes | samples / core-s | passes only | "
              "÷ reference | paper | paper samples / core-s | ratio | per wavelength sample | peak memory | "
-             "scratch set → BSDF | tables | scratches (segments) |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "scratch set → BSDF | tables | scratches (segments) | filtered BSDF: spp for the same noise (time) |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         if r["paper_per_core_s"]:
-            paper = f"{r['paper_minutes']:g} min" + ("" if r["paper_mp"] == 4.0 else f" ({r['paper_mp']:g} MP)")
+            notes = [f"{r['paper_mp']:g} MP"] if r["paper_mp"] != 4.0 else []
+            notes += [f"N_λ = {r['paper_wavelengths']}"] if r["paper_wavelengths"] != PAPER_WAVELENGTHS else []
+            paper = f"{r['paper_minutes']:g} min" + (f" ({', '.join(notes)})" if notes else "")
             ratio = r["per_core_s"] / r["paper_per_core_s"]
             shown = f"{ratio:.0f}" if ratio >= 10 else f"{ratio:.2g}"  # (.2g writes 102 as 1e+02)
-            versus = f"{r['paper_per_core_s']:.3g} | {shown}× | {ratio / 4:.2f}×"
+            versus = f"{r['paper_per_core_s']:.3g} | {shown}× | {ratio * r['wavelength_factor']:.2f}×"
         else:
             paper, versus = "—", "— | — | —"
         relative = f"{r['per_core_s'] / r['reference']['samples_per_core_s']:.3f}" if r["reference"] else "—"
@@ -299,20 +316,27 @@ def _benchmarks(figures, records: dict) -> str:
             f"| {r['label']} | {r['pixels']} | {r['render_s']:.0f} s | {r['passes_s']:.0f} s | "
             f"{r['per_core_s']:.3g} | {r['passes_per_core_s']:.3g} | "
             f"{relative} | {paper} | {versus} | {r['peak_mb']:,.0f} MB | "
-            f"{r['load_s']:.2f} s | {_tables_source(r)} | {r['scratches']:,} ({r['segments']:,}) |")
+            f"{r['load_s']:.2f} s | {_tables_source(r)} | {r['scratches']:,} ({r['segments']:,}) | "
+            f"{_filtered(r['filtered'])} |")
     traced = [r for r in rows if r["traced"]]
     lines += [""]
     if traced:
         lines.append("* **Traced passes**: " + "; ".join(f"{r['label']}: {r['traced']}" for r in traced) + ". "
                      "These pictures re-traced the integrator and the BSDF for every chunk instead of replaying "
                      "one recording ([rendering.md](rendering.md), Render): the same image, a slower render.")
-    lines += ["* **Peak memory** is the render process's maximum resident set (`ru_maxrss`): Blender (bpy), "
+    lines += ["* **Filtered BSDF: spp for the same noise**: the samples per pixel at which the footprint-filtered "
+              "scratch BSDF (the closed-form expected BSDF over the pixel footprint, built in another branch) "
+              "reaches the noise of the point-sampled picture in this row, and its render time. Not measured "
+              "yet (\"—\"): a run that measures it stores `filtered_same_noise` = {spp, render_s} in the "
+              "picture's statistics (`out/paper/<picture>.json`) and the page shows it.",
+              "* **Peak memory** is the render process's maximum resident set (`ru_maxrss`): Blender (bpy), "
               "Mitsuba and Dr.Jit themselves take about 400 MB of it, the rest is the scene, the scratch tables "
               "and the image.",
               "* **Scratch set → BSDF**: decoding the object's stored scratch file and `mi.load_dict` of the "
               "`scratch_diffraction` plugin with it and the object's settings (the UV grid of segments; the "
               "periodic families of dense sets; the crossing pairs of `crossings = \"height_field\"`), "
-              "timed on its own after the render.",
+              "timed on its own after the render (the disk cache off), once per scratch set and options in a run: "
+              "the pictures of one object share it.",
               "* The CD was the slow case of the model: a query evaluates the ~25 track pieces inside the coherence "
               "window, and finding them costs about twice what evaluating them does. Its tracks now sum in closed "
               "form wherever a window lies among them (periodic families, [model.md](model.md) §3.5; "
