@@ -49,9 +49,9 @@ FIGURE = Figure(
            "scratches perpendicular to the half vector form coloured rings around it, denser where the brush "
            "worked (around the handle, the push band). The door mirrors the dim hall elsewhere.",
     renders=(Render("door", "370 000 scratches, generated and painted, around a lamp's reflection", {},
-                    resolution=(540, 720), samples=256, paper_minutes=32),
+                    resolution=(540, 720), samples=192, paper_minutes=32),
              Render("variation", "the same scratches with depth variation D[1.1, 0.04] (Fig. 6 top left)",
-                    {"variation": True}, resolution=(540, 720), samples=256, paper_minutes=33)),
+                    {"variation": True}, resolution=(540, 720), samples=192, paper_minutes=33)),
 )
 
 
@@ -108,7 +108,7 @@ def _lamp_position():
     return tuple(reflection + mirrored * (LAMP_DISTANCE_M / -mirrored[1]))
 
 
-def build_scene(scene, *, variation: bool = False, resolution=(540, 720), samples: int = 256, scale: float = 1.0,
+def build_scene(scene, *, variation: bool = False, resolution=(540, 720), samples: int = 192, scale: float = 1.0,
                 seed: int = 5):
     """The door in its wall, the hall and the lamp; returns the door's front. ``scale`` < 1 scratches less
     (tests); ``variation`` adds D[1.1, 0.04] to every scratch (Fig. 6 top left)."""

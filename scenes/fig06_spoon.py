@@ -52,10 +52,10 @@ FIGURE = Figure(
            "scratch's glint into pieces). bowl: a close-up of the bowl, where single scratches and their "
            "changing colours can be told apart.",
     renders=(Render("lamp", "the spoon under a lamp: glints in the bowl around the lamp's reflection",
-                    {"view": "lamp"}, resolution=(720, 480), samples=256, paper_minutes=69),
+                    {"view": "lamp"}, resolution=(720, 480), samples=128, paper_minutes=69),
              Render("handle", "low light along the handle", {"view": "handle"}, resolution=(720, 480),
-                    samples=256, paper_minutes=83),
-             Render("bowl", "close-up of the bowl", {"view": "bowl"}, resolution=(600, 480), samples=256,
+                    samples=128, paper_minutes=83),
+             Render("bowl", "close-up of the bowl", {"view": "bowl"}, resolution=(600, 480), samples=128,
                     paper_minutes=368)),
 )
 
@@ -81,7 +81,7 @@ def painted_strokes(rng: np.random.Generator):
     return strokes
 
 
-def build_scene(scene, *, view: str = "lamp", resolution=(720, 480), samples: int = 256, scale: float = 1.0,
+def build_scene(scene, *, view: str = "lamp", resolution=(720, 480), samples: int = 128, scale: float = 1.0,
                 seed: int = 6):
     """The spoon on dark cloth, lit and seen as ``view`` says (a key of ``VIEWS``); returns the spoon's top.
     ``scale`` < 1 scratches less (tests)."""

@@ -54,7 +54,7 @@ FIGURE = Figure(
            "circumference. The paper renders 3 wavelengths per sample; we render 4 (hero wavelength sampling) "
            "— the benchmark table compares per wavelength sample.",
     renders=(Render("lamp", "547 381 scratches on a gold ring around a lamp's reflection", {},
-                    resolution=(800, 600), samples=128, paper_minutes=23, paper_megapixels=1.0,
+                    resolution=(600, 450), samples=48, paper_minutes=23, paper_megapixels=1.0,
                     paper_wavelengths=3),),
 )
 
@@ -71,7 +71,7 @@ def spray_strokes(ring=RING, stroke_v=STROKE_V, turns: int = STROKE_TURNS, point
     return strokes
 
 
-def build_scene(scene, *, resolution=(800, 600), samples: int = 128, scale: float = 1.0, seed: int = 3):
+def build_scene(scene, *, resolution=(600, 450), samples: int = 48, scale: float = 1.0, seed: int = 3):
     """The ring on velvet under a lamp; returns the ring. ``scale`` < 1 scratches less (tests)."""
     import bpy
 

@@ -16,8 +16,8 @@ import math
 
 import numpy as np
 
-__all__ = ["grid_object", "annulus_grid", "ring_surface", "ring_grid", "spoon_surface", "spoon_grid", "door_panels", "panel_rise", "panel_door_grid",
-           "door_relief", "polar_annulus", "ring", "spoon", "door", "box"]
+__all__ = ["grid_object", "annulus_grid", "ring_surface", "ring_grid", "spoon_surface", "spoon_grid", "door_panels",
+           "panel_rise", "panel_door_grid", "door_relief", "polar_annulus", "ring", "spoon", "door", "box"]
 
 
 # ------------------------------------------------------------------- meshes
@@ -127,11 +127,24 @@ def ring_surface(u, v, radius_m: float, width_m: float, thickness_m: float, squa
 
 def ring_grid(radius_m: float, width_m: float, thickness_m: float, segments: int, sections: int,
               squareness: float = 4.0):
-    """:func:`ring_surface` on a grid of ``segments`` quads around the ring and ``sections`` around the band."""
+    """:func:`ring_surface` on a grid of ``segments`` quads around the ring and ``sections`` around the band,
+    the latter spaced at equal arc length of the cross-section.
+
+    The UV map fills the unit square: u around the ring, v the arc length
+    around the cross-section over its perimeter, so a UV square is about four
+    times longer around the ring than across the band.  (An unwrap at one
+    scale, v over [0, perimeter / circumference], makes the scratch BSDF's
+    automatic grid four times finer for this dense set and its table build
+    twice as slow: docs/rendering.md, The ring.)
+    """
+    fine = np.linspace(0.0, 1.0, 8 * sections + 1)
+    section = ring_surface(0.0, fine, radius_m, width_m, thickness_m, squareness)
+    arc = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(section, axis=0), axis=1))]
+    along = np.linspace(0.0, arc[-1], sections + 1)
+    v = np.interp(along, arc, fine)
     u = np.linspace(0.0, 1.0, segments + 1)
-    v = np.linspace(0.0, 1.0, sections + 1)
     points = ring_surface(u[:, None], v[None, :], radius_m, width_m, thickness_m, squareness)
-    uv = np.stack(np.meshgrid(u, v, indexing="ij"), axis=-1)
+    uv = np.stack(np.meshgrid(u, along / arc[-1], indexing="ij"), axis=-1)
     return points, uv
 
 
@@ -170,8 +183,15 @@ def spoon_surface(x_m, t):
 
 
 def spoon_grid(lengthwise: int, across: int):
-    """The spoon's upper surface (:func:`spoon_surface`) as a grid of ``lengthwise`` × ``across`` quads:
-    u along the spoon from the bowl's tip (denser at both ends, where the outline turns fast), v across."""
+    """The spoon's upper surface (:func:`spoon_surface`) as a grid of ``lengthwise`` × ``across`` quads, rows
+    along the spoon from the bowl's tip (denser at both ends, where the outline turns fast), columns across.
+
+    The UV map fills the unit square: u = the row's parameter (the grid's
+    spacing, so a UV unit along the spoon is shorter at its ends), v across
+    from its left edge (0) to its right (1).  (A projection from above at
+    one scale makes the scratch BSDF's automatic grid four times finer and
+    its table build slower: docs/rendering.md, The ring.)
+    """
     s = np.linspace(0.0, 1.0, lengthwise + 1)
     t = np.linspace(-1.0, 1.0, across + 1)
     x = SPOON_OUTLINE[-1][0] * (0.5 - 0.5 * np.cos(np.pi * s))
@@ -204,8 +224,9 @@ def panel_door_grid(width_m: float, height_m: float, panels, raise_m: float, bev
     towards the viewer over a bevel ``bevel_m`` wide (:func:`panel_rise`).  The
     grid lines are placed at every panel's and bevel's edge (and every
     ``step_m`` between), so the faces are planar; the UV map is the front
-    view, one UV unit per leaf width and height: the bevels are slightly
-    compressed in UV, which the scratch BSDF reads through its UV Jacobian.
+    view at one scale, one UV unit per leaf height (u over [0, width /
+    height]): the bevels are slightly compressed in UV, which the scratch
+    BSDF reads through its UV Jacobian.
     """
     def lines(extent, edges):
         breaks = sorted({0.0, extent, *edges})
@@ -219,7 +240,7 @@ def panel_door_grid(width_m: float, height_m: float, panels, raise_m: float, bev
     zs = lines(height_m, [e for _, z0, _, z1 in panels for e in (z0, z0 + bevel_m, z1 - bevel_m, z1)])
     X, Z = np.meshgrid(xs, zs, indexing="ij")
     points = np.stack([X - 0.5 * width_m, -panel_rise(X, Z, panels, raise_m, bevel_m), Z], axis=-1)
-    uv = np.stack([X / width_m, Z / height_m], axis=-1)
+    uv = np.stack([X / height_m, Z / height_m], axis=-1)
     return points, uv
 
 
@@ -265,8 +286,9 @@ def spoon(name: str, *, lengthwise: int = 160, across: int = 24, thickness_m: fl
     return top, objects
 
 
-def door(name: str, *, width_m: float = 0.86, height_m: float = 2.0, handle=(0.355, 1.05), raise_m: float = DOOR_RAISE_M,
-         bevel_m: float = DOOR_BEVEL_M, mat=None, handle_mat=None, thickness_m: float = 0.04):
+def door(name: str, *, width_m: float = 0.86, height_m: float = 2.0, handle=(0.355, 1.05),
+         raise_m: float = DOOR_RAISE_M, bevel_m: float = DOOR_BEVEL_M, mat=None, handle_mat=None,
+         thickness_m: float = 0.04):
     """A door leaf with the raised panels of :func:`door_panels` (its front face scratched), its edges and a
     lever handle.
 

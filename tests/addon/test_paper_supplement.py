@@ -156,7 +156,7 @@ def test09_fig01_door_mixes_brush_work_around_the_handle_with_uniform_wear(empty
     assert not np.any(s.depth_variation[:, 0])
     # the handle's arcs: scratch midpoints crowd the rose's surroundings
     width, height = fig01_door.DOOR_M
-    x = (midpoints(s)[:, 0] - 0.5) * width
+    x = midpoints(s)[:, 0] * height - 0.5 * width  # the front view's UV map: one unit per leaf height
     z = midpoints(s)[:, 1] * height
     near = np.hypot(x - fig01_door.HANDLE[0], z - fig01_door.HANDLE[1]) < 0.1
     assert near.mean() > 2 * (np.pi * 0.1 ** 2) / (width * height)  # uniform wear alone: 1x

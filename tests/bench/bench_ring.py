@@ -24,7 +24,12 @@ figure before the stage's work is printed beside it):
 
 The last lines print each figure of the ring as a ratio to the table's.
 
+``--max-cached-pieces 16777216`` lets the viewport extend the ring's tables stroke by stroke (its 4.6
+million pieces are above ``bsdf/incremental.py``'s ``MAX_CACHED_PIECES``, so by default every stroke
+rebuilds them): the figure to compare with the default's.
+
     .venv/bin/python tests/bench/bench_ring.py [--strokes 5] [--size 960 540] [--only fig12_ring]
+        [--max-cached-pieces N]
 """
 from __future__ import annotations
 
@@ -140,11 +145,15 @@ def _stroke_points(scene_name: str, index: int, strokes: int):
     return [(x0 - 0.15, y, 0.0), (x0, y + 0.02, 0.0), (x0 + 0.15, y, 0.0)]
 
 
-def stage_viewport(scene_name: str, folder: Path, size, strokes: int) -> dict:
+def stage_viewport(scene_name: str, folder: Path, size, strokes: int, max_cached_pieces: int | None) -> dict:
     """The Rendered viewport on the saved scene: its start and Pen strokes (stroke → preview)."""
     import statistics
 
     os.environ["SCRATCH_IRIDESCENCE_CACHE_DIR"] = "off"  # the session builds the tables, as on a first open
+    if max_cached_pieces is not None:
+        from scratch_iridescence.mitsuba_bridge.bsdf import incremental
+
+        incremental.MAX_CACHED_PIECES = max_cached_pieces
     bpy = _blender()
     sys.path.insert(0, str(Path(__file__).parent))
     from bench_viewport import Engine, stroke, updates_of, view_of, wait_for
@@ -204,6 +213,8 @@ def run_stage(stage: str, scene_name: str, folder: Path, args) -> dict:
     """One stage in a fresh interpreter started from this (small) process."""
     command = [sys.executable, __file__, "--stage", stage, "--scene", scene_name, "--folder", str(folder),
                "--size", *map(str, args.size), "--strokes", str(args.strokes)]
+    if args.max_cached_pieces is not None:
+        command += ["--max-cached-pieces", str(args.max_cached_pieces)]
     done = subprocess.run(command, capture_output=True, text=True)
     results = [line for line in done.stdout.splitlines() if line.startswith("RESULT ")]
     if done.returncode != 0 or not results:
@@ -215,7 +226,8 @@ def run_stage(stage: str, scene_name: str, folder: Path, args) -> dict:
 def report(name: str, r: dict) -> None:
     g, t, rl, v = r["generate"], r["tables"], r["reload"], r["viewport"]
     print(f"{name}: {g['scratches']:,} scratches, {g['segments']:,} segments")
-    print(f"  generate {g['generate_s']:.1f} s, peak {g['generate_mb']:.0f} MB (Blender before: {g['before_mb']:.0f} MB)")
+    print(f"  generate {g['generate_s']:.1f} s, peak {g['generate_mb']:.0f} MB "
+          f"(Blender before: {g['before_mb']:.0f} MB)")
     print(f"  save .blend {g['save_blend_s']:.2f} s ({g['blend_mb']:.0f} MB), scratch file {g['save_file_s']:.2f} s "
           f"({g['file_mb']:.0f} MB); process peak {g['peak_mb']:.0f} MB")
     print(f"  reload: open .blend {rl['open_s']:.2f} s + decode {rl['decode_s']:.2f} s, peak {rl['peak_mb']:.0f} MB "
@@ -238,12 +250,16 @@ def main():
                         help="viewport size (pixels)")
     parser.add_argument("--strokes", type=int, default=5, help="pen strokes timed in the viewport")
     parser.add_argument("--only", nargs="+", choices=SCENES, default=list(SCENES))
+    parser.add_argument("--max-cached-pieces", type=int, default=None,
+                        help="the viewport's strokes extend the tables of sets up to this many pieces "
+                             "(bsdf/incremental.py's MAX_CACHED_PIECES, 2^20; above it every stroke rebuilds them)")
     args = parser.parse_args()
     if args.stage:
         stage = {"generate": lambda: stage_generate(args.scene, args.folder, args.size),
                  "reload": lambda: stage_reload(args.scene, args.folder),
                  "tables": lambda: stage_tables(args.scene, args.folder),
-                 "viewport": lambda: stage_viewport(args.scene, args.folder, args.size, args.strokes)}[args.stage]
+                 "viewport": lambda: stage_viewport(args.scene, args.folder, args.size, args.strokes,
+                                                    args.max_cached_pieces)}[args.stage]
         print("RESULT " + json.dumps(stage()), flush=True)
         return 0
 
