@@ -25,7 +25,7 @@ figure before the stage's work is printed beside it):
 The last lines print each figure of the ring as a ratio to the table's.
 
 ``--max-cached-pieces 16777216`` lets the viewport extend the ring's tables stroke by stroke (its 4.6
-million pieces are above ``bsdf/incremental.py``'s ``MAX_CACHED_PIECES``, so by default every stroke
+million pieces are above ``bsdf/tables/incremental.py``'s ``MAX_CACHED_PIECES``, so by default every stroke
 rebuilds them): the figure to compare with the default's.
 
     .venv/bin/python tests/bench/bench_ring.py [--strokes 5] [--size 960 540] [--only fig12_ring]
@@ -109,9 +109,10 @@ def stage_reload(scene_name: str, folder: Path) -> dict:
 def stage_tables(scene_name: str, folder: Path) -> dict:
     """scratch.load of the file, then the BSDF's tables built (no Blender; the disk cache off)."""
     os.environ["SCRATCH_IRIDESCENCE_CACHE_DIR"] = "off"
-    from scratch_iridescence.mitsuba_bridge import bsdf, scratch, variants
+    from scratch_iridescence.mitsuba_bridge import bsdf, scratch
+    from scratch_iridescence.mitsuba_bridge.render.activation import activate
 
-    variants.activate("llvm_ad_spectral")
+    activate("llvm_ad_spectral")
     before = peak_mb()
     began = time.perf_counter()
     scratches = scratch.load(folder / f"{scene_name}.npz")
@@ -151,12 +152,12 @@ def stage_viewport(scene_name: str, folder: Path, size, strokes: int, max_cached
 
     os.environ["SCRATCH_IRIDESCENCE_CACHE_DIR"] = "off"  # the session builds the tables, as on a first open
     if max_cached_pieces is not None:
-        from scratch_iridescence.mitsuba_bridge.bsdf import incremental
+        from scratch_iridescence.mitsuba_bridge.bsdf.tables import incremental
 
         incremental.MAX_CACHED_PIECES = max_cached_pieces
     bpy = _blender()
     sys.path.insert(0, str(Path(__file__).parent))
-    from bench_viewport import Engine, stroke, updates_of, view_of, wait_for
+    from bench_viewport import stroke, updates_of, view_of, wait_for
 
     from scratch_iridescence.addon.render.viewport import ViewportRender, stats_of
     from scratch_iridescence.scenes import fig01_table, fig12_ring
@@ -252,7 +253,7 @@ def main():
     parser.add_argument("--only", nargs="+", choices=SCENES, default=list(SCENES))
     parser.add_argument("--max-cached-pieces", type=int, default=None,
                         help="the viewport's strokes extend the tables of sets up to this many pieces "
-                             "(bsdf/incremental.py's MAX_CACHED_PIECES, 2^20; above it every stroke rebuilds them)")
+                             "(bsdf/tables/incremental.py's MAX_CACHED_PIECES, 2^20; above it every stroke rebuilds them)")
     args = parser.parse_args()
     if args.stage:
         stage = {"generate": lambda: stage_generate(args.scene, args.folder, args.size),
