@@ -55,13 +55,15 @@ FIGURE = Figure(
     design="(b): the Fig. 6 set-up (the disc on a dark cloth seen from 21 cm at 45°, a small strip light "
            "hanging 15 cm beyond it) — the first order draws rainbow arcs from violet inside to red outside "
            "over the far half, where the half vector's tangential part runs radially across the tracks. (d): "
-           "looking straight down from 30 cm with a small lamp 6 cm beside the lens: h·n = mλ/P with "
-           "h ≈ r/H radial makes the first order a rainbow ring around the centre, split into the two "
-           "bright spokes where the tracks run perpendicular to the lamp's offset.",
+           "looking straight down from 30 cm (60 mm lens) with a round lamp (5 cm) 7 cm beside the lens: its "
+           "reflection lies on one side of the hub; on the other side, along the line through the lamp's "
+           "foot, the tangential half vector h ≈ (l − 2x)/H runs radially and h·n = mλ/P lights a spoke: the "
+           "first order from yellow near the hub to red, then the second order's violet and blue towards "
+           "the rim.",
     renders=(
         Render("b", "(b) the strip light beyond the disc: rainbow arcs of the first order", {"view": "strip"},
                resolution=(720, 540), samples=128, paper_minutes=200),
-        Render("d", "(d) from above, a lamp beside the lens: a rainbow ring split into two spokes",
+        Render("d", "(d) from above, a round lamp beside the lens: its reflection, and a rainbow spoke opposite",
                {"view": "above"}, resolution=(600, 600), samples=128, paper_minutes=204),
     ),
 )

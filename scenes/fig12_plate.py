@@ -22,19 +22,20 @@ EXPOSURE = -3.0
 FIGURE = Figure(
     key="fig12_plate", label="Fig. 12 (right)", title="Densely scratched plate",
     paper="The supplement's densest plate: 481 905 scratches whose depth and width are both G[4.0, 0.01] µm, "
-          "rendered at 1 MP with only 3 wavelengths per sample (31 min). We have not seen the figure itself; "
-          "grooves this deep and wide diffract into a narrow cone around the mirror direction, with a depth "
-          "phase that changes many times across the spectrum.",
+          "rendered at 1 MP with only 3 wavelengths per sample (31 min). We have not seen the figure itself. "
+          "Grooves of one width and depth all diffract alike: their glints share one pattern of colours by "
+          "angle from the light's mirror direction.",
     scratches="481 905 scratches (Generate operator: random directions, straight, 1–5 mm), G_D[4.0, 0.01] µm, "
               "G_W[4.0, 0.01] µm, rectangular, no variation; aluminium, coherence diameter 30 µm; about a quarter "
               "of the plate lies in a groove, 2.6 grooves per coherence area on average",
     design="A 15 cm aluminium plate on a dark table in the Fig. 7(b) studio (one small lamp 40° high, the camera "
-           "on the other side 15° above its mirror direction, 34 cm away). The 4 µm grooves diffract within a "
-           "few degrees of the mirror direction: the glints crowd into a bright halo around the lamp's "
-           "reflection, nearly white, since their depth phase 2π(γ_i + γ_o)D/λ runs through many turns over the "
-           "visible spectrum and the colours of neighbouring grooves average out. The paper renders 3 "
-           "wavelengths per sample; we render 4 (hero wavelength sampling) — the benchmark table compares per "
-           "wavelength sample.",
+           "on the other side 15° above its mirror direction, 34 cm away). Every groove has the same 4 µm "
+           "width and depth, so every glint has the same spectrum at a given angle from the lamp's mirror "
+           "direction (the groove's transform across it and its depth phase 2π(γ_i + γ_o)D/λ, both functions "
+           "of that angle and λ alone): the sparkle, dense enough to fill the plate, forms concentric rainbow "
+           "rings around the lamp's reflection, white at its centre. The paper renders 3 wavelengths per "
+           "sample; we render 4 (hero wavelength sampling) — the benchmark table compares per wavelength "
+           "sample.",
     renders=(Render("lamp", "481 905 deep scratches around a lamp's reflection", {},
                     resolution=(720, 540), samples=64, paper_minutes=31, paper_megapixels=1.0,
                     paper_wavelengths=3),),
