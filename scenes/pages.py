@@ -47,6 +47,15 @@ def _machine() -> str:
     return f"{cores} cores ({cpu})"
 
 
+def _settings(record: dict, render) -> str:
+    """"W × H × spp", and make paper's own settings where a run scaled them down (--scale, --samples-scale)."""
+    shown = f"{record['width']} × {record['height']} × {record['spp']}"
+    if (record['width'], record['height'], record['spp']) != (*render.resolution, render.samples) and \
+            (record.get("samples_scale", 1.0) != 1.0 or record.get("resolution_scale", 1.0) != 1.0):
+        shown += f" (make paper: {render.resolution[0]} × {render.resolution[1]} × {render.samples})"
+    return shown
+
+
 def benchmark_rows(figures, records: dict) -> list[dict]:
     """One row per rendered picture: throughput here and in the paper, memory, load time."""
     rows = []
@@ -61,7 +70,7 @@ def benchmark_rows(figures, records: dict) -> list[dict]:
             setup_s = max(record["render_s"] - passes_s, 0.0)  # gather, scratch tables, first compile
             rows.append({
                 "name": name, "label": f"{figure.label} {render.name}", "samples": samples, "spp": record["spp"],
-                "pixels": f"{record['width']} × {record['height']} × {record['spp']}",
+                "pixels": _settings(record, render),
                 "render_s": record["render_s"], "passes_s": passes_s, "cpu_s": record["render_cpu_s"],
                 "per_core_s": samples / record["render_cpu_s"],
                 # Setup is mostly single-threaded: charge it one core, the rest to the passes.
@@ -76,6 +85,9 @@ def benchmark_rows(figures, records: dict) -> list[dict]:
                 "tables_read": record.get("tables_read"), "tables_built": record.get("tables_built"),
                 "scratches": record["scratches"], "segments": record["segments"],
                 "build_s": record["build_s"], "total_s": record["total_s"],
+                # the same picture at make paper's own settings: the passes scale with pixels × spp
+                "full_settings_s": record["total_s"] + passes_s * (
+                    render.resolution[0] * render.resolution[1] * render.samples / samples - 1.0),
                 # the machine reference of the run that rendered this picture (None before they were kept)
                 "reference": record.get("reference"),
                 "traced": record.get("traced"),  # the engine's note when its passes could not be frozen
@@ -117,7 +129,7 @@ def _figure_section(module, figure, records: dict) -> list[str]:
             f", {render.paper_wavelengths} wavelengths per sample"
         paper = f"{render.paper_minutes:g} min at {paper_res} × {PAPER_SPP} spp{wavelengths}" \
             if render.paper_minutes else "— (beyond the paper)"
-        lines.append(f"| {render.name} | {record['width']} × {record['height']} × {record['spp']} | "
+        lines.append(f"| {render.name} | {_settings(record, render)} | "
                      f"{record['build_s']:.1f} s + {record['render_s']:.0f} s | {paper} |")
     return lines + [""]
 
@@ -184,6 +196,11 @@ def _gallery(figures, records: dict, validation: dict | None) -> str:
     render_total = sum(r["total_s"] for r in rows)
     # The pictures may come from several runs (--only): add up what each took, not this run's wall time.
     total_s = render_total + (validation or {}).get("seconds", 0.0)
+    scaled = [r for r in rows if abs(r["full_settings_s"] - r["total_s"]) > 1e-9]
+    scaled_note = "" if not scaled else (
+        f" {len(scaled)} of the pictures were rendered below make paper's settings (their tables say which); at its own "
+        f"settings (their passes scaled by pixels × spp) the page would take about "
+        f"{_minutes(total_s + sum(r['full_settings_s'] - r['total_s'] for r in scaled))}.")
     lines = ["# Gallery: the paper's scenes, reproduced", "",
              "Werner, Velinov, Jakob, Hullin: *Scratch iridescence: Wave-optical rendering of diffractive "
              "surface structure* (SIGGRAPH Asia 2017). Every scene below is built in code by a module of "
@@ -195,8 +212,8 @@ def _gallery(figures, records: dict, validation: dict | None) -> str:
              "scene shows the same effect. Our renders are far cheaper than the paper's (4 MP × 16 384 spp on 72 "
              "cores): "
              f"{_machine()}, {_minutes(total_s)} for this whole page ({_minutes(render_total)} of it building and "
-             "rendering the pictures), so resolution and samples are a small fraction of the paper's and the "
-             "pictures keep some Monte Carlo noise. Pictures are display-referred PNGs (Blender's Standard view "
+             f"rendering the pictures), so resolution and samples are a small fraction of the paper's and the "
+             f"pictures keep some Monte Carlo noise.{scaled_note} Pictures are display-referred PNGs (Blender's Standard view "
              "with each scene's exposure: AgX would wash the diffraction colours out); the linear EXRs are in "
              "`out/paper/`.", "",
              "| figure | scratches | pictures | time here | paper |", "|---|---|---|---|---|"]
@@ -206,7 +223,7 @@ def _gallery(figures, records: dict, validation: dict | None) -> str:
             continue
         lines.append(f"| [{figure.label}](#{_anchor(figure)}) {figure.title} | {mine[0]['scratches']:,} "
                      f"({mine[0]['segments']:,} segments) | {len(mine)} | "
-                     f"{_minutes(sum(r['total_s'] for r in mine))} | "
+                     f"{_minutes(sum(r['total_s'] for r in mine))}{_full_settings(mine)} | "
                      + " / ".join(f"{r['paper_minutes']:g}" for r in mine if r["paper_minutes"]) + " min |")
     lines.append("")
     for module, figure in figures:
@@ -222,6 +239,14 @@ def _gallery(figures, records: dict, validation: dict | None) -> str:
               "Blender with the scratches, lights and camera) and rendered in a fresh one, as "
               "`blender -b out/paper/<picture>.blend -E MITSUBA_SCRATCH -f 1` would.", ""]
     return "\n".join(lines)
+
+
+def _full_settings(rows: list[dict]) -> str:
+    """" (about N at make paper's settings)" for a figure rendered below them, else ""."""
+    full_s = sum(r["full_settings_s"] for r in rows)
+    if abs(full_s - sum(r["total_s"] for r in rows)) < 1e-9:
+        return ""
+    return f" (about {_minutes(full_s)} at make paper's settings)"
 
 
 def _anchor(figure) -> str:

@@ -245,7 +245,8 @@ def run_all(output: Path, only=None, scale: float = 1.0, samples_scale: float = 
                                  "--resolution", *map(str, resolution), "--samples", str(samples)], name)
             rendered = _run_worker(["render", built["blend"], "--output", str(output)], name)
             record = {"figure": figure.key, "render": render.name, "name": name,
-                      "total_s": time.perf_counter() - began, **built, **rendered}
+                      "total_s": time.perf_counter() - began, "samples_scale": samples_scale,
+                      "resolution_scale": scale, **built, **rendered}
             (output / f"{name}.json").write_text(json.dumps(record, indent=1))
             print(f"  done in {record['total_s']:.0f} s (render {record['render_s']:.0f} s, "
                   f"peak {record['peak_mb']:.0f} MB)", flush=True)

@@ -208,7 +208,7 @@ def test10_paper_runner_builds_renders_and_writes_the_pages(tmp_path):
     assert row["paper_per_core_s"] == pytest.approx(4e6 * 16384 / (19 * 60 * 72))
     gallery, benchmarks = (docs / "gallery.md").read_text(), (docs / "benchmarks.md").read_text()
     assert "](gallery/fig09_grating-coherent.png)" in gallery and "## Fig. 9" in gallery
-    assert "| Fig. 9 coherent | 36 × 22 × 5 |" in benchmarks
+    assert "| Fig. 9 coherent | 36 × 22 × 5 (make paper: 720 × 450 × 256) |" in benchmarks
     # The machine reference, measured before and after the pictures, divides every row.
     reference = pages.load_reference(output)
     assert reference["before"] > 0 and reference["after"] > 0
