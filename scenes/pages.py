@@ -198,8 +198,8 @@ def _gallery(figures, records: dict, validation: dict | None) -> str:
     total_s = render_total + (validation or {}).get("seconds", 0.0)
     scaled = [r for r in rows if abs(r["full_settings_s"] - r["total_s"]) > 1e-9]
     scaled_note = "" if not scaled else (
-        f" {len(scaled)} of the pictures were rendered below make paper's settings (their tables say which); at its own "
-        f"settings (their passes scaled by pixels × spp) the page would take about "
+        f" {len(scaled)} of the pictures were rendered below make paper's settings (their tables say which); "
+        f"at its own settings (their passes scaled by pixels × spp) the page would take about "
         f"{_minutes(total_s + sum(r['full_settings_s'] - r['total_s'] for r in scaled))}.")
     lines = ["# Gallery: the paper's scenes, reproduced", "",
              "Werner, Velinov, Jakob, Hullin: *Scratch iridescence: Wave-optical rendering of diffractive "
@@ -213,9 +213,9 @@ def _gallery(figures, records: dict, validation: dict | None) -> str:
              "cores): "
              f"{_machine()}, {_minutes(total_s)} for this whole page ({_minutes(render_total)} of it building and "
              f"rendering the pictures), so resolution and samples are a small fraction of the paper's and the "
-             f"pictures keep some Monte Carlo noise.{scaled_note} Pictures are display-referred PNGs (Blender's Standard view "
-             "with each scene's exposure: AgX would wash the diffraction colours out); the linear EXRs are in "
-             "`out/paper/`.", "",
+             f"pictures keep some Monte Carlo noise.{scaled_note} Pictures are display-referred PNGs "
+             "(Blender's Standard view with each scene's exposure: AgX would wash the diffraction colours out); "
+             "the linear EXRs are in `out/paper/`.", "",
              "| figure | scratches | pictures | time here | paper |", "|---|---|---|---|---|"]
     for module, figure in figures:
         mine = [r for r in rows if r["name"].startswith(module.__name__.rsplit(".", 1)[-1] + "-")]
