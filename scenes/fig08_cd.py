@@ -100,11 +100,6 @@ def build_scene(scene, *, view: str = "strip", resolution=(720, 540), samples: i
     ``track_radii_m`` narrows the program area (tests); ``workdir`` is where the
     track file is written before it is imported (a temporary folder by default).
     """
-    import tempfile
-
-    import bpy
-
-    from ..mitsuba_bridge import scratch
     from . import shapes, staging
 
     metal = staging.material("CD aluminium", (0.91, 0.92, 0.92), roughness=0.05, metallic=1.0)
@@ -112,16 +107,8 @@ def build_scene(scene, *, view: str = "strip", resolution=(720, 540), samples: i
                               location=(0.0, 0.0, 0.0012))
     cd.scratch_iridescence.base_material = "Al"
     cd.scratch_iridescence.coherence_diameter_um = COHERENCE_DIAMETER_M * 1e6
-    with tempfile.TemporaryDirectory() as temporary:
-        path = Path(workdir or temporary) / "cd_ensemble.npz"
-        path.parent.mkdir(parents=True, exist_ok=True)
-        scratch.save(ensemble_tracks(track_radii_m), path)
-        staging.operator(bpy.ops.scratch.import_file, cd, filepath=str(path), mode="REPLACE")
-
-    hub = staging.material("Polycarbonate hub", (0.6, 0.62, 0.65), roughness=0.25)
-    staging.disc("CD hub", METAL_INNER_M, (0.0, 0.0, 0.0012), hub, vertices=128, hole=HOLE_RADIUS_M)
-    cloth = staging.material("Dark cloth", (0.02, 0.02, 0.025), roughness=1.0)
-    staging.plane("Cloth", 1.0, (0.0, 0.0, 0.0), cloth)
+    staging.import_scratches(cd, ensemble_tracks(track_radii_m), "cd_ensemble.npz", workdir)
+    staging.cd_surroundings(METAL_INNER_M, HOLE_RADIUS_M, 0.0012)
     staging.constant_world(scene, (0.08, 0.08, 0.08))
     if view == "strip":
         staging.area_light(scene, "Strip light", (0.0, 0.10, 0.12), (0.0, 0.0, 0.0), power_w=0.6,
