@@ -52,14 +52,18 @@ FIGURE = Figure(
     scratches="23 333 circular tracks, one straight UV line each on the disc's polar UV map (one segment per "
               "track, cut by the BSDF into 64 pieces of 1/64 UV), W = 1 µm, D = 120 nm, rectangular, pitch "
               "1.5 µm, radii 23–58 mm: 21 tracks in every coherence area of δ_c = 30 µm",
-    design="(b): the Fig. 6 set-up (the disc on a dark cloth seen from 21 cm at 45°, a small strip light "
-           "hanging 15 cm beyond it) — the first order draws rainbow arcs from violet inside to red outside "
-           "over the far half, where the half vector's tangential part runs radially across the tracks. (d): "
-           "looking straight down from 30 cm (60 mm lens) with a round lamp (5 cm) 7 cm beside the lens: its "
-           "reflection lies on one side of the hub; on the other side, along the line through the lamp's "
-           "foot, the tangential half vector h ≈ (l − 2x)/H runs radially and h·n = mλ/P lights a spoke: the "
-           "first order from yellow near the hub to red, then the second order's violet and blue towards "
-           "the rim.",
+    design="(b): the Fig. 6 set-up (the disc on a dark cloth seen from 21 cm at 45°, a small strip light hanging 15 "
+           "cm beyond it) — the first order draws rainbow arcs from violet inside to red outside over the far half, "
+           "where the half vector's tangential part runs radially across the tracks, then blue and violet again at "
+           "the rim's two ends (the second order). On the near half the tangential parts towards the lamp and the "
+           "camera nearly cancel: it stays dark up to a violet patch at the near rim, where |h·n| first reaches λ/P;"
+           " the boundary between the halves is a sharp line across the disc through the hub. The picture is the "
+           "Fig. 6 CD's (its 21 875 tracks at 1.6 µm give 19 per coherence area), as the ensemble's pitch is nearly "
+           "the same. (d): looking straight down from 30 cm (60 mm lens) with a round lamp (5 cm) 7 cm beside the "
+           "lens: its reflection lies on one side of the hub, white with an orange fringe; on the other side, along "
+           "the line through the lamp's foot, the tangential half vector h ≈ (l − 2x)/H runs radially and h·n = mλ/P"
+           " lights a spoke: the first order from yellow-green near the hub to red, then the second order's violet "
+           "and blue towards the rim.",
     renders=(
         Render("b", "(b) the strip light beyond the disc: rainbow arcs of the first order", {"view": "strip"},
                resolution=(720, 540), samples=128, paper_minutes=200),
