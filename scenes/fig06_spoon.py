@@ -44,13 +44,15 @@ FIGURE = Figure(
     scratches="100 000 scratches, U_D[0, 6] µm, U_W[0, 6] µm, D[1.1, 0.04], rectangular: painted with the Spray "
               "brush (8 circling strokes in the bowl, 6 strokes along the handle) and the Pen (4 long "
               "scratches), the rest generated (random, 1.5–6 mm); silver, coherence diameter 30 µm",
-    design="A 19 cm silver spoon on dark cloth in a dark studio with one small lamp (a 3 mm sphere 35 cm away). "
-           "lamp: seen from above the bowl's tip, the lamp 40° high beyond the spoon; its reflection sits in "
-           "the concave bowl, which gathers the glints of the circling strokes into rings around it. handle: "
-           "the lamp low from the handle's end, the camera on the other side: the reflection runs along the "
-           "handle's rising end, the strokes along it glinting as dashes (the depth variation breaks each "
-           "scratch's glint into pieces). bowl: a close-up of the bowl, where single scratches and their "
-           "changing colours can be told apart.",
+    design="A 19 cm silver spoon (its outline modelled in code, a few coarse facets visible at the bowl's rim) on "
+           "dark cloth in a dark studio with one small lamp (a 3 mm sphere 35 cm away). lamp: the spoon seen from "
+           "the side, the lamp 40° high beyond it: the lamp's reflection is a bright streak on the middle of the "
+           "handle and a highlight on the bowl's near rim; fine coloured speckle covers the bowl and the handle's "
+           "end, the glints of scratches too short (1.5–6 mm) to be told apart at this size. handle: the lamp low "
+           "from the handle's end, the camera on the other side looking along the spoon: the reflection runs the "
+           "whole length of the handle, white with coloured speckle, and a highlight sits on the bowl's near rim. "
+           "bowl: a close-up of the bowl, where the glints of the circling strokes draw a swirl of coloured arcs "
+           "around the lamp's reflection in the bowl's bottom — the clearest picture of the three.",
     renders=(Render("lamp", "the spoon under a lamp: glints in the bowl around the lamp's reflection",
                     {"view": "lamp"}, resolution=(720, 480), samples=128, paper_minutes=69),
              Render("handle", "low light along the handle", {"view": "handle"}, resolution=(720, 480),
