@@ -51,7 +51,8 @@ FIGURE = Figure(
            "pixel, so the rings the plates show stay a cloud of coloured dots, and the brush work around the handle "
            "does not stand out. Elsewhere the door mirrors the dim hall. The floor in front of the door is speckled "
            "with bright dots: lamp light that the door's metal mirrors onto the diffuse floor, which the path tracer"
-           " finds only by chance at these samples per pixel (caustic noise, not scratches).",
+           " finds only by chance at these samples per pixel (caustic noise, not scratches). With depth variation"
+           " the halo looks the same, a little sparser.",
     renders=(Render("door", "370 000 scratches, generated and painted, around a lamp's reflection", {},
                     resolution=(540, 720), samples=192, paper_minutes=32),
              Render("variation", "the same scratches with depth variation D[1.1, 0.04] (Fig. 6 top left)",

@@ -47,12 +47,15 @@ FIGURE = Figure(
               "around the stroke; Generate: random directions for the rest), 0.4–1.6 mm long, D = 500 nm, "
               "W = 1 µm, rectangular, no variation; gold, coherence diameter 30 µm; stored as one piece per "
               "side of a UV seam",
-    design="A gold ring of 17 mm inner diameter lying on dark velvet, seen from 12 cm at 35° with a 100 mm "
-           "macro lens, lit by one small lamp on the far side (a 3 mm sphere 35 cm away, 40° high) and a dim "
-           "room: the lamp's reflection is a small highlight on the band's far side, and the scratches light "
-           "up around it along the band, the aligned wear of the sprayed strokes as streaks along the "
-           "circumference. The paper renders 3 wavelengths per sample; we render 4 (hero wavelength sampling) "
-           "— the benchmark table compares per wavelength sample.",
+    design="A gold ring of 17 mm inner diameter lying on dark velvet, seen from 12 cm at 35° with a 100 mm macro "
+           "lens, lit by one small lamp on the far side (a 3 mm sphere 35 cm away, 40° high) and a dim room. The "
+           "lamp's reflection is an orange highlight on the inside of the band's far side and another on the front "
+           "of its near side; around them the whole band carries a mottled iridescent sheen, green beside gold and "
+           "orange, the 1 µm grooves diffracting far from the mirror direction. Single scratches and the sprayed "
+           "streaks along the circumference are far below a pixel at this size and do not stand out. The velvet "
+           "around and inside the ring is speckled with coloured dots: light the ring mirrors onto the diffuse "
+           "cloth, found by chance at these samples per pixel (caustic noise). The paper renders 3 wavelengths per "
+           "sample; we render 4 (hero wavelength sampling) — the benchmark table compares per wavelength sample.",
     renders=(Render("lamp", "547 381 scratches on a gold ring around a lamp's reflection", {},
                     resolution=(600, 450), samples=48, paper_minutes=23, paper_megapixels=1.0,
                     paper_wavelengths=3),),
