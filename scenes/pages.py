@@ -15,7 +15,7 @@ from pathlib import Path
 
 from .figure import PAPER_CORES, PAPER_SPP, PAPER_WAVELENGTHS
 
-__all__ = ["write", "load_records", "load_reference", "benchmark_rows"]
+__all__ = ["write", "load_records", "load_reference", "benchmark_rows", "rate"]
 
 GALLERY_DIR = "gallery"
 
@@ -47,6 +47,11 @@ def _machine() -> str:
     return f"{cores} cores ({cpu})"
 
 
+def rate(value: float | None) -> str:
+    """A samples-per-core-second figure as the benchmark table prints it ("—": not measurable)."""
+    return "—" if value is None else f"{value:.3g}"
+
+
 def _settings(record: dict, render) -> str:
     """"W × H × spp", and make paper's own settings where a run scaled them down (--scale, --samples-scale)."""
     shown = f"{record['width']} × {record['height']} × {record['spp']}"
@@ -74,7 +79,10 @@ def benchmark_rows(figures, records: dict) -> list[dict]:
                 "render_s": record["render_s"], "passes_s": passes_s, "cpu_s": record["render_cpu_s"],
                 "per_core_s": samples / record["render_cpu_s"],
                 # Setup is mostly single-threaded: charge it one core, the rest to the passes.
-                "passes_per_core_s": samples / max(record["render_cpu_s"] - setup_s, 1e-9),
+                # (None where the set-up's wall time reaches half the render's CPU time: on a shared machine
+                # the set-up did not have a core to itself, and its wall time says nothing of its CPU)
+                "passes_per_core_s": samples / (record["render_cpu_s"] - setup_s)
+                if setup_s < 0.5 * record["render_cpu_s"] else None,
                 "paper_minutes": render.paper_minutes, "paper_mp": render.paper_megapixels,
                 "paper_per_core_s": render.paper_samples_per_core_second,
                 "paper_wavelengths": render.paper_wavelengths, "wavelength_factor": render.wavelength_factor,
@@ -312,9 +320,10 @@ def _benchmarks(figures, records: dict) -> str:
              "quarter of the spectral information of one of theirs (4/3 of one of Fig. 12's): per wavelength "
              "sample, multiply the ratio by 4/N_λ. The render "
              "call includes gathering the scene, building the scratch tables and compiling the kernels; "
-             "*passes only* charges that set-up (mostly one thread) to one core and counts the rest. Kernels and "
-             "tables come from their caches where an earlier render of the same scene compiled or built them, as "
-             "for any render after a user's first: column *tables* says whether this render built them or read "
+             "*passes only* charges that set-up (mostly one thread) to one core and counts the rest (\"—\" where "
+             "the set-up's wall time reaches half the render's CPU time: on a loaded machine it did not have a "
+             "core). Kernels and tables come from their caches where an earlier render of the same scene "
+             "compiled or built them, as for any render after a user's first: column *tables* says whether this render built them or read "
              "them from the disk cache (docs/rendering.md); *scratch set → BSDF* is the build's own time either "
              "way.", "",
              "**Per wavelength sample** is that ratio times 4/N_λ (N_λ: the paper's wavelengths per sample, 16 "
@@ -339,7 +348,7 @@ def _benchmarks(figures, records: dict) -> str:
         relative = f"{r['per_core_s'] / r['reference']['samples_per_core_s']:.3f}" if r["reference"] else "—"
         lines.append(
             f"| {r['label']} | {r['pixels']} | {r['render_s']:.0f} s | {r['passes_s']:.0f} s | "
-            f"{r['per_core_s']:.3g} | {r['passes_per_core_s']:.3g} | "
+            f"{r['per_core_s']:.3g} | {rate(r['passes_per_core_s'])} | "
             f"{relative} | {paper} | {versus} | {r['peak_mb']:,.0f} MB | "
             f"{r['load_s']:.2f} s | {_tables_source(r)} | {r['scratches']:,} ({r['segments']:,}) | "
             f"{_filtered(r['filtered'])} |")
