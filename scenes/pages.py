@@ -323,7 +323,8 @@ def _benchmarks(figures, records: dict) -> str:
              "*passes only* charges that set-up (mostly one thread) to one core and counts the rest (\"—\" where "
              "the set-up's wall time reaches half the render's CPU time: on a loaded machine it did not have a "
              "core). Kernels and tables come from their caches where an earlier render of the same scene "
-             "compiled or built them, as for any render after a user's first: column *tables* says whether this render built them or read "
+             "compiled or built them, as for any render after a user's first: column *tables* says whether this "
+             "render built them or read "
              "them from the disk cache (docs/rendering.md); *scratch set → BSDF* is the build's own time either "
              "way.", "",
              "**Per wavelength sample** is that ratio times 4/N_λ (N_λ: the paper's wavelengths per sample, 16 "
