@@ -384,9 +384,15 @@ def _benchmarks(figures, records: dict) -> str:
     return "\n".join(lines)
 
 
+#: benchmarks.md keeps what follows this line: figures measured by other benchmarks than ``make paper``.
+KEPT_BENCHMARKS = "<!-- measured outside make paper: kept when make paper rewrites this page -->"
+
+
 def write(docs: Path, records: dict, validation: dict | None, figures, output: Path) -> None:
     """Write ``gallery.md``, ``benchmarks.md`` and ``gallery/*.png`` into ``docs``."""
     docs = Path(docs)
     _copy_pictures(docs, records, validation, output)
     (docs / "gallery.md").write_text(_gallery(figures, records, validation))
-    (docs / "benchmarks.md").write_text(_benchmarks(figures, records))
+    previous = (docs / "benchmarks.md").read_text() if (docs / "benchmarks.md").is_file() else ""
+    kept = previous[previous.index(KEPT_BENCHMARKS):] if KEPT_BENCHMARKS in previous else ""
+    (docs / "benchmarks.md").write_text(_benchmarks(figures, records) + ("\n\n" + kept if kept else ""))

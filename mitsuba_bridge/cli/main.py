@@ -5,7 +5,10 @@ Commands
 info FILE...      summary of scratch files (validates them)
 generate OUT      write a random scratch file for a flat UV square
 render FOLDER     render a folder exported from Blender ("Export Mitsuba scene") to EXR or PNG
-                  (--chunk K/N: only part K of N of the samples, for render farms)
+                  (--chunk K/N: only part K of N of the samples, for render farms;
+                  --cluster ADDRESS: every chunk as a task on a Dask cluster)
+render-frames B   render frames of a .blend (--frames 1-240 -o out/frame_####.exr [--cluster ADDRESS])
+export-frames B   export frames of a .blend as scene folders (pip's bpy, no Blender binary)
 merge PART...     combine the parts of one render into its image (bit for bit the whole render)
 validate OUT      the plugin against a brute-force wave field over the direction-cosine plane (figure + numbers)
 """
@@ -15,7 +18,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from . import batch
+from . import batch, farm
 from .. import scratch
 from ..errors import ParameterError
 
@@ -144,12 +147,38 @@ def _main(argv) -> int:
                         help="Mitsuba variant (default auto: cuda_ad_spectral, else metal_ad_spectral when available, "
                              "else llvm_ad_spectral)")
     render.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
-    render.set_defaults(run=batch.render_command)
+    render.add_argument("--cluster", metavar="ADDRESS",
+                        help="render the chunks as tasks on a Dask cluster: a scheduler address (tcp://host:8786) or "
+                             "local:N (N worker processes here); the image is the one-machine render, bit for bit")
+    render.add_argument("--chunks-per-task", type=int, metavar="N",
+                        help="with --cluster: chunks per task, a power of two (default 1, grouped only for schedules "
+                             "far longer than the workers)")
+    render.set_defaults(run=farm.render_command)
+
+    frames = commands.add_parser("render-frames", help="render frames of a .blend (exported with pip's bpy), here or "
+                                                       "on a Dask cluster")
+    frames.add_argument("blend", help="the .blend file (external files packed when workers share no disk)")
+    frames.add_argument("--frames", required=True, help="frames: 1-240, 1..240, 1,5,10-12, 1-240:2")
+    frames.add_argument("-o", "--output", required=True, help="image per frame: out/frame_####.exr (# = frame number)")
+    frames.add_argument("--spp", type=int, default=None, help="samples per pixel (default: the scene's)")
+    frames.add_argument("--seed", type=int, default=None, help="0 .. 2**32-1 (default: the scene's)")
+    frames.add_argument("--variant", default="auto", help="Mitsuba variant (default auto)")
+    frames.add_argument("--cluster", metavar="ADDRESS", help="a Dask scheduler address or local:N (see render)")
+    frames.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
+    frames.set_defaults(run=farm.render_frames_command)
+
+    exports = commands.add_parser("export-frames", help="export frames of a .blend as scene folders (pip's bpy)")
+    exports.add_argument("blend")
+    exports.add_argument("--frames", required=True, help="frames: 1-240, 1,5,10-12")
+    exports.add_argument("-o", "--output", required=True, help="folder per frame: out/scene_#### (# = frame number)")
+    exports.set_defaults(run=farm.export_frames_command)
 
     merge = commands.add_parser("merge", help="combine the parts of one render (render --chunk K/N) into its image")
-    merge.add_argument("parts", nargs="+", help="part files (.exr) of the same render, every chunk exactly once")
+    merge.add_argument("parts", nargs="+", help="part files (.exr) of the same render, every chunk exactly once "
+                                                "(a folder: every .exr in it)")
     merge.add_argument("-o", "--output", required=True, help="output .exr or .png")
-    merge.set_defaults(run=batch.merge_command)
+    merge.add_argument("--frame", type=int, help="frame number for the # runs of -o (frame_####.exr)")
+    merge.set_defaults(run=farm.merge_command)
 
     validate = commands.add_parser("validate", help="compare the plugin with a brute-force wave field (needs "
                                                     "scipy and matplotlib: the dev extras)")

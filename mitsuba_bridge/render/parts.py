@@ -52,16 +52,11 @@ class RenderIdentity:
 
 def scene_fingerprint(folder, entries: tuple[str, ...]) -> str:
     """SHA-256 (hex) of the named entries of an export folder: names, sizes and bytes of every file."""
+    from ..files.entries import entry_files
+
     folder = Path(folder)
     digest = hashlib.sha256()
-    files = []
-    for name in entries:
-        path = folder / name
-        if path.is_dir():
-            files += sorted(p for p in path.rglob("*") if p.is_file())
-        elif path.is_file():
-            files.append(path)
-    for path in files:
+    for path in entry_files(folder, entries):
         digest.update(f"{path.relative_to(folder).as_posix()}\0{path.stat().st_size}\0".encode())
         with open(path, "rb") as stream:
             for block in iter(lambda: stream.read(1 << 20), b""):

@@ -63,9 +63,10 @@ print("LLVM", drjit.detail.llvm_version(), os.environ.get("DRJIT_LIBLLVM_PATH"))
 
 
 #: Tracked files that users do not run: the scenes (demo, paper harness) and the numerical validation
-#: with its brute-force reference and probe (blender_manifest.toml, [build] paths_exclude_pattern).
-NOT_SHIPPED = ("scenes/", "mitsuba_bridge/validation/", "tests/", "docs/", ".ci/", "Makefile", "pyproject.toml",
-               ".gitignore")
+#: with its brute-force reference and probe; the farm job definitions and the Dask cluster room, whose
+#: Dask is not bundled (blender_manifest.toml, [build] paths_exclude_pattern).
+NOT_SHIPPED = ("scenes/", "mitsuba_bridge/validation/", "mitsuba_bridge/cluster/", "farm/", "tests/", "docs/", ".ci/",
+               "Makefile", "pyproject.toml", ".gitignore")
 
 
 MANIFEST = tomllib.loads((ROOT / "blender_manifest.toml").read_text())
@@ -180,6 +181,8 @@ def test_zip_holds_the_addon_and_the_bridge_but_not_the_paper_harness(linux_zip)
     assert code == shipped, sorted(code ^ shipped)  # nothing untracked (caches, egg-info, outputs) either
     assert {name.split("-")[0] for name in names if name.startswith("wheels/")} == \
         {"wheels/mitsuba", "wheels/drjit", "wheels/openexr", "wheels/karellen_llvm_core"}
+    # Nothing of Dask (the cluster extra) nor the cluster room that needs it enters the zip.
+    assert not [name for name in names if "dask" in name or "distributed" in name or "/cluster/" in name]
 
 
 @pytest.mark.slow
