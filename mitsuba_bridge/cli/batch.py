@@ -56,13 +56,14 @@ def parse_chunk(text: str) -> tuple[int, int]:
 
 
 def _load(folder):
-    from ..folder.export import SCENE_FILE, load_folder
+    from ..folder.export import check_folder, load_folder
     from ..render.interrupts import interruption_in
 
     folder = Path(folder)
-    scene_file = folder / SCENE_FILE if folder.is_dir() else folder
-    if not scene_file.is_file():
-        raise CommandError(f"{scene_file}: no such scene file (expected an exported folder holding {SCENE_FILE})")
+    try:
+        scene_file = check_folder(folder)  # (a killed re-export completed; FIFOs refused before Mitsuba waits on one)
+    except OSError as error:
+        raise CommandError(str(error)) from None
     try:
         return load_folder(folder), scene_file
     except (OSError, RuntimeError, ValueError, TypeError) as error:

@@ -16,6 +16,7 @@ import numpy as np
 
 from .archive import ArchiveReader
 from ..files.atomic import write_atomically
+from ..files.regular import open_regular
 from .scratchset import (FIELD_SPECS, MAX_SCRATCHES, MAX_VERTICES, ScratchFormatError, ScratchSet,
                          validate_offsets)
 
@@ -40,10 +41,12 @@ def load(path) -> ScratchSet:
         offsets, unknown profile, wrong or future format, not a zip archive ...).
     FileNotFoundError
         When ``path`` does not exist.
+    NotARegularFile
+        When ``path`` is a FIFO, a device or a folder (refused at once: a FIFO's reader would wait forever).
     """
     path = Path(path)
     try:
-        with open(path, "rb") as stream:
+        with open_regular(path) as stream:
             return _read(stream)
     except ScratchFormatError as error:
         raise error.with_path(path) from None
