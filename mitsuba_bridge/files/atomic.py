@@ -117,15 +117,16 @@ def _names(path: Path, handle: int) -> bool:
     return (found.st_dev, found.st_ino) == (held.st_dev, held.st_ino)
 
 
-def remove_stale_temporaries(folder, name: str | None = None) -> int:
-    """Remove the temporary siblings killed writers left in ``folder`` (of the file ``name``, or of any file).
+def remove_stale_temporaries(folder, name: str | None = None, *, name_pattern: str = r".+") -> int:
+    """Remove the temporary siblings killed writers left in ``folder`` (of the file ``name``, else of any file
+    whose name matches the regular expression ``name_pattern``).
 
     A sibling counts as a killed writer's when no process holds its lock (or,
     without ``flock``, when untouched for :data:`STALE_UNLOCKED_SECONDS`).
     Returns how many were removed; never raises for a file it cannot remove.
     """
-    base = re.escape(name) if name is not None else r".+"
-    pattern = re.compile(rf"\.{base}\.[0-9a-f]{{8}}\.tmp.*", re.DOTALL)
+    base = re.escape(name) if name is not None else name_pattern
+    pattern = re.compile(rf"\.(?:{base})\.[0-9a-f]{{8}}\.tmp.*", re.DOTALL)
     removed = 0
     try:
         entries = [entry for entry in os.scandir(folder) if pattern.fullmatch(entry.name)]

@@ -15,7 +15,7 @@ from ..errors import ParameterError
 from .distributions import Constant, Distribution, Gaussian, Uniform
 from .scratchset import Profile, ScratchSet
 
-__all__ = ["random_scratches", "sample_parameters", "check_looks", "MAX_SCRATCH_SIZE_M",
+__all__ = ["random_scratches", "sample_parameters", "check_looks", "estimate_generate_bytes", "MAX_SCRATCH_SIZE_M",
            "MAX_VARIATION_AMPLITUDE", "MAX_VARIATION_FREQUENCY"]
 
 #: Largest width or depth (metres) a distribution may reach (its upper bound, a Gaussian's mean + 3 std).
@@ -28,6 +28,17 @@ MAX_VARIATION_AMPLITUDE = 10.0
 #: Largest noise frequency: 255 oscillations along a scratch.  The renderer cuts a varying scratch into
 #: four pieces per oscillation (``subdivide``), so the frequency bounds the pieces of every scratch.
 MAX_VARIATION_FREQUENCY = 1.0
+
+
+#: Peak memory of :func:`random_scratches` and saving the set, per scratch and per vertex (bytes, with margin):
+#: ``tracemalloc`` measured 317 B per scratch at 8 vertices, 191 at 2 and 1 065 at 32 (100 000 and 50 000
+#: scratches, generated and saved, numpy 2).
+_BYTES_PER_SCRATCH, _BYTES_PER_VERTEX = 200, 40
+
+
+def estimate_generate_bytes(count: int, vertices: int) -> int:
+    """Peak memory (bytes) of generating ``count`` scratches of ``vertices`` vertices and saving them."""
+    return int(count) * (_BYTES_PER_SCRATCH + _BYTES_PER_VERTEX * int(vertices))
 
 
 def _largest(distribution: Distribution) -> float:

@@ -207,11 +207,13 @@ def test_no_camera_is_refused_before_rendering(empty_scene, tmp_path):
 
 
 def test_a_render_bigger_than_free_memory_is_refused_with_the_estimate(lit, tmp_path, monkeypatch):
-    from scratch_iridescence.mitsuba_bridge.render import memory as footprint
+    from scratch_iridescence.mitsuba_bridge.device import memory
 
-    monkeypatch.setattr(footprint, "available_memory_bytes", lambda: 10_000)  # 32 x 24 needs about 0.2 MB
+    # (as the real check reads a container's limit: tests/bridge/device/test_memory.py lays out real cgroup files)
+    monkeypatch.setattr(memory, "smallest_limit", lambda **paths: memory.MemoryLimit(10_000, "cgroup v2 memory.max"))
     lit.render.filepath = str(tmp_path / "big.exr")
-    with pytest.raises(RuntimeError, match=r"a 32 x 24 render needs about 0\.\d MB of memory .* only 0\.0 MB is free"):
+    with pytest.raises(RuntimeError, match=r"a 32 x 24 render needs about 0\.\d MiB of memory .* only 0\.0 MiB is "
+                                           r"allowed \(cgroup v2 memory.max\)"):
         bpy.ops.render.render(write_still=True)
     assert not (tmp_path / "big.exr").exists()
 
