@@ -12,6 +12,7 @@ import traceback
 import bpy
 import numpy as np
 
+from ...mitsuba_bridge.errors import ScratchUserError
 from . import backend
 from .gather import GatherError, gather_scene, gather_settings
 from .turns import viewports_paused
@@ -34,6 +35,17 @@ def combined_rect(image: np.ndarray, transparent: bool) -> np.ndarray:
 def _fail(engine, message: str) -> None:
     engine.report({"ERROR"}, message)
     engine.error_set(message)
+
+
+def _user_error(error: BaseException):
+    """The :class:`ScratchUserError` behind ``error`` (Mitsuba raises a plugin's exception as the cause of its own)."""
+    seen = set()
+    while error is not None and id(error) not in seen:
+        if isinstance(error, ScratchUserError):
+            return error
+        seen.add(id(error))
+        error = error.__cause__ or error.__context__
+    return None
 
 
 def _bridge():
@@ -59,7 +71,7 @@ def render_frame(engine, depsgraph) -> None:
         variant = activation.activate(settings.variant)
         engine.update_stats("", "Mitsuba | Gathering scene")
         description = gather_scene(depsgraph, camera=getattr(engine, "camera_override", None))
-    except (GatherError, variants.VariantError) as error:
+    except (GatherError, variants.VariantError, ScratchUserError) as error:  # (the description's invariants too)
         _fail(engine, str(error))
         return
     except Exception as error:  # an add-on bug must not look like a black render
@@ -72,6 +84,11 @@ def render_frame(engine, depsgraph) -> None:
         return
 
     width, height = description.film.size
+    try:  # before Blender allocates its own image of that size
+        passes.check_film_memory(width, height, settings.spp, settings.seed)
+    except (passes.NotEnoughMemory, passes.ScheduleError) as error:
+        _fail(engine, f"Mitsuba Scratch: {error}")
+        return
     result = engine.begin_result(0, 0, width, height, layer=depsgraph.view_layer.name)
     cancelled, progress = False, None
     try:
@@ -110,8 +127,12 @@ def render_frame(engine, depsgraph) -> None:
     except (passes.NotEnoughMemory, passes.ScheduleError) as error:
         _fail(engine, f"Mitsuba Scratch: {error}")
     except Exception as error:
-        traceback.print_exc()
-        _fail(engine, f"Mitsuba Scratch: rendering failed: {type(error).__name__}: {error}")
+        user = _user_error(error)
+        if user is not None:  # raised inside a plugin (Mitsuba wraps it): the user's to fix, no traceback
+            _fail(engine, f"Mitsuba Scratch: {user}")
+        else:
+            traceback.print_exc()
+            _fail(engine, f"Mitsuba Scratch: rendering failed: {type(error).__name__}: {error}")
     finally:
         engine.end_result(result)
     if progress is not None and progress.traced_note:

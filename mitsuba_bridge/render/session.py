@@ -220,6 +220,7 @@ class Session:
             strip_pixels = 0 if on_gpu() else CPU_STRIP_PIXELS
         width, height = description.film.size
         check_session_memory(width, height, self.start_divisor, strip_pixels)  # before any film exists
+        builder.check_tables_memory(description)
         self.description = description
         # One Mitsuba shape per described shape (no shapegroups): transforms are updated per shape name.
         scene_dict = builder.scene_dict(description, self.settings, instancing=False)

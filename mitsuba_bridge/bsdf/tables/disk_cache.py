@@ -62,7 +62,7 @@ from . import cache_file
 from ...files.atomic import remove_stale_temporaries, write_atomically
 from ...files.regular import NotARegularFile, open_regular
 
-__all__ = ["directory", "set_root", "code_fingerprint", "limit_bytes", "load", "store", "load_tables",
+__all__ = ["directory", "set_root", "code_fingerprint", "fingerprinted_sources", "limit_bytes", "load", "store", "load_tables",
            "store_tables", "tables_digest", "statistics", "DEFAULT_LIMIT_MB", "MIN_BUILD_SECONDS", "SUBFOLDER"]
 
 #: Default size limit of the cache folder (MB).
@@ -144,12 +144,18 @@ def code_fingerprint() -> str:
     return _fingerprint
 
 
+def fingerprinted_sources(package: Path | None = None) -> list[Path]:
+    """The sources :func:`code_fingerprint` digests: every module of ``bsdf/`` and ``scratch/``, subfolders included."""
+    package = Path(__file__).resolve().parents[2] if package is None else package  # mitsuba_bridge
+    return sorted((source for folder in ("bsdf", "scratch") for source in (package / folder).rglob("*.py")),
+                  key=lambda source: source.relative_to(package).as_posix())
+
+
 def _source_digest(package: Path) -> str:
     digest = hashlib.sha256(f"{cache_file.LAYOUT}:{np.__version__}".encode())
-    for folder in ("bsdf", "scratch"):
-        for source in sorted((package / folder).rglob("*.py"), key=lambda p: p.relative_to(package).as_posix()):
-            digest.update(source.relative_to(package).as_posix().encode() + b"\0")
-            digest.update(source.read_bytes())
+    for source in fingerprinted_sources(package):
+        digest.update(source.relative_to(package).as_posix().encode() + b"\0")
+        digest.update(source.read_bytes())
     return digest.hexdigest()
 
 

@@ -65,6 +65,24 @@ def remove(relative):
     return lambda folder: (folder / relative).unlink()
 
 
+def extreme_file(field: str, value) -> bytes:
+    """The bytes of a scratch file of 50 scratches with ``field`` set to ``value`` (written by numpy, unchecked)."""
+    import io
+
+    arrays = scratch.random_scratches(50, seed=1).as_dict()
+    arrays[field] = value(arrays[field].copy())
+    stream = io.BytesIO()
+    np.savez(stream, format=np.array(scratch.FORMAT), **arrays)
+    return stream.getvalue()
+
+
+def _set(index, value):
+    def change(array):
+        array[index] = value
+        return array
+    return change
+
+
 # (name, argv with {good} {plain} {out} {dir} placeholders, folder edit or None, expected words in the error)
 CASES = [
     ("no arguments", ["render"], None, "required"),
@@ -103,6 +121,13 @@ CASES = [
     ("missing scratch file", ["render", "{case}", "-o", "{out}"], remove("scratches/plate.npz"), "does not exist"),
     ("corrupt scratch file", ["render", "{case}", "-o", "{out}"],
      write("scratches/plate.npz", b"PK\x03\x04" + bytes(300)), "scratch file"),
+    # values beyond the format's bounds (docs/scratch-format.md): refused by name, never an internal error
+    ("depth variation 1e300", ["render", "{case}", "-o", "{out}"],
+     write("scratches/plate.npz", extreme_file("depth_variation", _set((0, 0), 1e300))), "amplitude must be at most 10"),
+    ("variation frequency 1e300", ["render", "{case}", "-o", "{out}"],
+     write("scratches/plate.npz", extreme_file("width_variation", _set((3, 1), 1e300))), "frequency at most 1"),
+    ("uv spread to 1e300", ["render", "{case}", "-o", "{out}"],
+     write("scratches/plate.npz", extreme_file("uv", _set((7, 0), 1e300))), "must lie within ±10000 UV units"),
     ("negative coherence diameter", ["render", "{case}", "-o", "{out}"],
      xml_edit('name="coherence_diameter" value="3e-05"', 'name="coherence_diameter" value="-3e-05"'),
      "coherence_diameter"),
