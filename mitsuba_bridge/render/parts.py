@@ -19,7 +19,9 @@ the image (:func:`read_header`): the identity's types and ranges, the schedule
 recomputed from spp, pixels and seed (its chunk count and digest), the part's
 chunk range, its sample count (the sum of its chunks' spp), its node list (the
 tree nodes of its range), the data window (the image size) and the channel list
-(exactly RGBA and the nodes' sums, full resolution).  The memory a merge needs
+(exactly RGBA and the nodes' sums, full resolution).  A part also carries a
+``checksum`` (SHA-256 of its own attributes and every pixel): a part damaged in
+storage or transfer, a flipped bit of a stored sum included, is refused.  The memory a merge needs
 is then checked against what the process is allowed
 (:mod:`mitsuba_bridge.device.memory`) before any part's pixels are read.  Read
 back, the sums must be uint32 halves of finite float64 values whose total,
@@ -33,6 +35,7 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import numbers
+import os
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 
@@ -74,6 +77,11 @@ class RenderIdentity:
     chunk_count: int
     schedule: str   #: :func:`schedule_digest` of the whole schedule
     tables: str     #: :func:`tables_fingerprint` of the scratch tables rendered with (code version included)
+
+
+#: The header attributes a part writes beside EXR's own, all covered by its ``checksum``.
+_OWN_ATTRIBUTES = ("format", "samples", "chunkFirst", "chunkStop", "nodes",
+                   *(f"render.{field.name}" for field in fields(RenderIdentity)))
 
 
 def scene_fingerprint(folder, entries: tuple[str, ...]) -> str:
@@ -147,7 +155,22 @@ def write_part(path, identity: RenderIdentity, sums: PairwiseSum, samples: int) 
               "nodes": ",".join(f"{n.level}.{n.index}" for n in nodes),
               **{f"render.{key}": value for key, value in asdict(identity).items()}}
     mean = (sums.total() / samples).astype(np.float32)
+    pixels = {**{name: mean[..., c] for c, name in enumerate(_RGBA)}, **channels}
+    header["checksum"] = _checksum(header, pixels)
     return write_image(path, mean, header=header, channels=channels)
+
+
+def _checksum(header: dict, pixels: dict) -> str:
+    """SHA-256 of a part's own header attributes and of every channel's pixels: EXR itself has no checksum, so a part
+    damaged in storage or transfer (a flipped bit in a stored sum) would otherwise merge into a wrong image."""
+    digest = hashlib.sha256()
+    own = {key: header.get(key) for key in sorted(_OWN_ATTRIBUTES)}
+    digest.update(repr(sorted(own.items())).encode())
+    for name in sorted(pixels):
+        values = np.asarray(pixels[name])
+        digest.update(f"{name}:{values.dtype.kind}{values.dtype.itemsize}:{values.shape}".encode())
+        digest.update(np.ascontiguousarray(values, dtype=values.dtype.newbyteorder("<")).tobytes())
+    return digest.hexdigest()
 
 
 @dataclass(frozen=True)
@@ -160,6 +183,8 @@ class PartHeader:
     samples: int
     nodes: tuple[Node, ...]
     node_samples: dict  #: Node -> samples per pixel its sums hold
+    checksum: str  #: what :func:`_checksum` of its attributes and pixels must give
+    attributes: dict  #: the part's own header attributes, as read
 
 
 @dataclass(frozen=True)
@@ -211,11 +236,64 @@ def read_header(path) -> PartHeader:
         if stream.read(4) != _EXR_MAGIC:  # checked here: OpenEXR would also print its own complaint
             raise PartError(f"{path}: not a render part (not an EXR file)")
         stream.seek(0)
-        try:
+        with _openexr_messages(path):
             header = dict(OpenEXR.File(stream, header_only=True).header())
-        except (OSError, RuntimeError, ValueError, TypeError) as error:
-            raise PartError(f"{path}: not a readable render part ({type(error).__name__}: {error})") from None
-    return _check_header(path, header)
+            return _check_header(path, header)
+
+
+@contextlib.contextmanager
+def _openexr_messages(path: Path):
+    """Run OpenEXR calls with what its libraries print (C errors on stderr, the binding's warnings on stdout)
+    captured, and turn any failure into one :class:`PartError` that quotes them: the command line prints one line
+    per error, nothing else."""
+    import sys
+    import tempfile
+
+    import io
+
+    captured, printed = tempfile.TemporaryFile(), io.StringIO()
+    saved = {}
+    for stream, number in ((sys.stdout, 1), (sys.stderr, 2)):
+        try:
+            stream.flush()
+            saved[number] = os.dup(number)
+        except (OSError, ValueError, AttributeError):  # no such descriptor (an embedding host): leave it
+            continue
+        os.dup2(captured.fileno(), number)
+    try:
+        # (the binding prints its warnings through Python's sys.stdout, the C library to the descriptors)
+        with contextlib.redirect_stdout(printed), contextlib.redirect_stderr(printed):
+            yield
+    except PartError:
+        raise
+    except (OSError, RuntimeError, ValueError, TypeError, KeyError, AttributeError, MemoryError) as error:
+        captured.write(printed.getvalue().encode())
+        raise PartError(f"{path}: not a readable render part ({type(error).__name__}: "
+                        f"{_first_line(error, captured)})") from None
+    finally:
+        _flush_c_streams()  # (the binding writes through C++'s cout, buffered in C's stdout until flushed)
+        for number, descriptor in saved.items():
+            os.dup2(descriptor, number)
+            os.close(descriptor)
+        captured.close()
+
+
+def _flush_c_streams() -> None:
+    import ctypes
+    import ctypes.util
+
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or None)
+        libc.fflush(None)
+    except (OSError, AttributeError, TypeError):  # no C library to ask (Windows' is per module): nothing buffered there
+        pass
+
+
+def _first_line(error: BaseException, captured) -> str:
+    captured.seek(0)
+    said = captured.read(4096).decode("utf-8", "replace").strip().splitlines()
+    text = str(error).strip().splitlines()
+    return (text[0] if text else "") + (f"; OpenEXR: {said[0].split(': ', 1)[-1]}" if said else "")
 
 
 def _check_header(path: Path, header: dict) -> PartHeader:
@@ -256,7 +334,9 @@ def _check_header(path: Path, header: dict) -> PartHeader:
             (getattr(channel, "xSampling", 0), getattr(channel, "ySampling", 0)) != (1, 1) for channel in channels):
         raise PartError(f"{path}: its channels are not RGBA and the sums of its {len(nodes)} tree nodes")
     node_samples = {node: sum(chunk.spp for chunk in chunks[node.start:min(node.stop, count)]) for node in nodes}
-    return PartHeader(path, identity, range(first, stop), samples, nodes, node_samples)
+    checksum = _text(path, header, "checksum")
+    attributes = {key: header.get(key) for key in _OWN_ATTRIBUTES}
+    return PartHeader(path, identity, range(first, stop), samples, nodes, node_samples, checksum, attributes)
 
 
 def _schedule(path: Path, identity: RenderIdentity) -> list[Chunk]:
@@ -279,14 +359,9 @@ def _read_sums(header: PartHeader) -> dict:
     import OpenEXR
 
     path = header.path
-    with _open(path) as stream:
-        try:
-            with OpenEXR.File(stream, separate_channels=True) as file:
-                return _checked_sums(header, file.channels())
-        except PartError:
-            raise
-        except (OSError, RuntimeError, ValueError, TypeError, KeyError, MemoryError) as error:
-            raise PartError(f"{path}: not a readable render part ({type(error).__name__}: {error})") from None
+    with _open(path) as stream, _openexr_messages(path):
+        with OpenEXR.File(stream, separate_channels=True) as file:
+            return _checked_sums(header, file.channels())
 
 
 def _checked_sums(header: PartHeader, channels: dict) -> dict:
@@ -308,6 +383,8 @@ def _checked_sums(header: PartHeader, channels: dict) -> dict:
             raise PartError(f"{path}: the sums of chunks {node.start}-{min(node.stop, header.identity.chunk_count) - 1}"
                             " hold NaN or infinite values")
         nodes[node] = value
+    if header.checksum != _checksum(header.attributes, {name: channel.pixels for name, channel in channels.items()}):
+        raise PartError(f"{path}: damaged: its checksum does not match its header and pixels")
     rgba = np.stack([np.asarray(channels[c].pixels, dtype=np.float64) for c in _RGBA], axis=-1)
     if not np.all(np.isfinite(rgba)):
         raise PartError(f"{path}: its image holds NaN or infinite values")

@@ -68,9 +68,14 @@ def content_digest(arrays: dict[str, np.ndarray]) -> str:
     """SHA-256 (hex) of the data region :func:`write` lays out for ``arrays`` (as :func:`read` computes it)."""
     digest = hashlib.sha256()
     for _, _, padding, array in _layout(arrays):
-        digest.update(memoryview(np.ascontiguousarray(array)).cast("B"))
+        digest.update(_bytes_of(array))
         digest.update(bytes(padding))
     return digest.hexdigest()
+
+
+def _bytes_of(array: np.ndarray) -> memoryview:
+    """The array's bytes in C order, without a copy where it is contiguous (empty arrays included)."""
+    return memoryview(np.ascontiguousarray(array).reshape(-1).view(np.uint8))
 
 
 def _layout(arrays: dict[str, np.ndarray]):
@@ -102,7 +107,7 @@ def write(stream: BinaryIO, secret: bytes, identity: Identity, records: dict, ar
     stream.write(len(header).to_bytes(8, "little"))
     stream.write(header)
     for _, _, padding, array in _layout(arrays):
-        stream.write(memoryview(array).cast("B"))
+        stream.write(_bytes_of(array))
         stream.write(bytes(padding))
     return digest
 
@@ -149,11 +154,14 @@ def _read_arrays(stream: BinaryIO, header: dict, data_bytes: int) -> tuple[dict,
     if not isinstance(directory, list) or len(directory) > _MAX_ARRAYS:
         raise CacheFileError("a damaged array directory")
     position, digest, arrays = 0, hashlib.sha256(), {}
+    whole = lambda value: isinstance(value, int) and not isinstance(value, bool)
     for entry in directory:
         try:
             name, dtype_text, shape, offset, nbytes = entry
+            if not (isinstance(name, str) and name and name not in arrays and isinstance(dtype_text, str)
+                    and isinstance(shape, list) and all(whole(d) for d in shape) and whole(offset) and whole(nbytes)):
+                raise TypeError("not a name, a dtype, a shape, an offset and a size")
             dtype = np.dtype(dtype_text)
-            shape = tuple(int(d) for d in shape)
         except (TypeError, ValueError):
             raise CacheFileError("a damaged array directory") from None
         if dtype.kind not in _KINDS or any(d < 0 for d in shape) or offset != position \

@@ -45,7 +45,9 @@ def contents(path):
         return dict(file.header()), {name: np.array(c.pixels) for name, c in file.channels().items()}
 
 
-def rewritten(source, target, header_edit=None, channels_edit=None):
+def rewritten(source, target, header_edit=None, channels_edit=None, *, checksum=True):
+    """``source`` edited; its checksum recomputed (``checksum``: as a tool that edits parts on purpose would),
+    so that the checks behind it are the ones tested."""
     import OpenEXR
 
     header, channels = contents(source)
@@ -55,6 +57,8 @@ def rewritten(source, target, header_edit=None, channels_edit=None):
         header_edit(header)
     if channels_edit:
         channels_edit(channels)
+    if checksum:
+        header["checksum"] = parts._checksum(header, channels)
     OpenEXR.File(header, channels).write(str(target))
     return target
 
@@ -137,14 +141,18 @@ def corrupted(thirds, tmp_path_factory):
         for key in [n for n in channels if n.startswith("sum.")]:
             channels[key] = channels[key].astype(np.float32)
 
-    cases["float32 sum channels"] = (rewritten(thirds[1], base / "f.exr", None, float_sums), "holds PixelType.FLOAT (24, 32), not PixelType.UINT")
+    cases["float32 sum channels"] = (rewritten(thirds[1], base / "f.exr", None, float_sums),
+                                     "holds PixelType.FLOAT (24, 32), not PixelType.UINT")
+    flip = sums_of(*first_node(header), lambda v: (v.view(np.uint64) ^ np.uint64(1)).view(np.float64))
+    cases["a flipped bit"] = (rewritten(thirds[1], base / "b.exr", None, flip, checksum=False),
+                              "damaged: its checksum does not match its header and pixels")
     cases["NaN image"] = (rewritten(thirds[1], base / "n.exr", None,
                                     lambda channels: channels["G"].__setitem__((3, 4), np.nan)), "its image holds NaN")
     return cases
 
 
 @pytest.mark.parametrize("name", [c[0] for c in HEADER_CASES] + [c[0] for c in SUM_CASES]
-                         + ["float32 sum channels", "NaN image"])
+                         + ["float32 sum channels", "NaN image", "a flipped bit"])
 def test01_each_corruption_is_one_error_line(thirds, corrupted, tmp_path, capsys, name):
     path, words = corrupted[name]
     out = tmp_path / "merged.exr"
