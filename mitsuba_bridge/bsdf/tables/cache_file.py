@@ -48,7 +48,7 @@ MARKER = "scratch-iridescence scratch tables cache"
 MAX_HEADER_BYTES = 1 << 20
 _MAX_ARRAYS = 256
 _ALIGN = 64
-_KINDS = "biuf"  #: numbers only: no objects, strings or structured records
+_KINDS = "biuf"  #: numbers only (native order, at most 8 bytes: what the writer writes), no objects or strings
 _CHUNK = 1 << 24
 
 
@@ -164,7 +164,8 @@ def _read_arrays(stream: BinaryIO, header: dict, data_bytes: int) -> tuple[dict,
             dtype = np.dtype(dtype_text)
         except (TypeError, ValueError):
             raise CacheFileError("a damaged array directory") from None
-        if dtype.kind not in _KINDS or any(d < 0 for d in shape) or offset != position \
+        if dtype.kind not in _KINDS or dtype.itemsize > 8 or dtype.byteorder not in "=|" \
+                or any(d < 0 for d in shape) or offset != position \
                 or math.prod(shape) * dtype.itemsize != nbytes or offset + nbytes > data_bytes:
             raise CacheFileError(f"array {name!r} does not fit its declared place")
         array = np.empty(shape, dtype=dtype)

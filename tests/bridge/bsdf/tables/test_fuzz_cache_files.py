@@ -81,7 +81,9 @@ def structural_mutation(data: bytes, rng) -> bytes:
             field = int(rng.integers(5))
             names = [-1, None, [], "", header["arrays"][0][0] if entry is not header["arrays"][0] else
                      header["arrays"][1][0]]
-            entry[field] = names[int(rng.integers(len(names)))] if field == 0 else weird[int(rng.integers(len(weird)))]
+            shapes = [-1, 3.5, "x", None, {}, [-3], [1 << 40], [2, 3, 5]]  # (none holds the entry's bytes)
+            entry[field] = names[int(rng.integers(len(names)))] if field == 0 else \
+                shapes[int(rng.integers(len(shapes)))] if field == 2 else weird[int(rng.integers(len(weird)))]
         elif kind == 1:  # identity and layout fields
             header[str(rng.choice(["key", "options", "code", "layout", "marker", "content"]))] = \
                 weird[int(rng.integers(len(weird)))]
