@@ -66,8 +66,13 @@ def format_bytes(count: float) -> str:
     return f"{count / 2 ** 20:.1f} MiB"
 
 
-def memory_limits(*, proc: Path = _PROC, cgroup_root: Path = _CGROUP_ROOT) -> list[MemoryLimit]:
-    """Every limit that applies to this process now (the free memory first); empty where none is known."""
+def memory_limits(*, proc: Path | None = None, cgroup_root: Path | None = None) -> list[MemoryLimit]:
+    """Every limit that applies to this process now (the free memory first); empty where none is known.
+
+    ``proc`` and ``cgroup_root`` stand for ``/proc`` and ``/sys/fs/cgroup`` (tests lay out their own).
+    """
+    proc = _PROC if proc is None else Path(proc)
+    cgroup_root = _CGROUP_ROOT if cgroup_root is None else Path(cgroup_root)
     limits = []
     physical = _physical(proc)
     if physical is not None:

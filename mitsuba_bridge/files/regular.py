@@ -61,7 +61,7 @@ def open_regular(path, *, follow_symlinks: bool = True) -> BinaryIO:
         mode = os.fstat(descriptor).st_mode
         if not stat.S_ISREG(mode):
             raise NotARegularFile(f"{path}: is {kind_of(mode)}, not a regular file")
-        if hasattr(os, "set_blocking"):
+        if getattr(os, "O_NONBLOCK", 0):
             os.set_blocking(descriptor, True)  # (no effect on a regular file's reads; restored for clarity)
         return os.fdopen(descriptor, "rb")
     except BaseException:

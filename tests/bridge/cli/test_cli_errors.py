@@ -265,3 +265,42 @@ def test_a_render_bigger_than_free_memory_is_refused_before_rendering(variant, t
     assert err.startswith("error: a 60000 x 60000 render needs about ") and "GiB of memory" in err, err
     assert "only" in err and "is allowed (" in err and "\n" not in err
     assert time.perf_counter() - started < 30  # refused up front, not after allocating
+
+
+def test_a_render_too_big_for_ulimit_v_is_refused_not_a_crash(variant, tmp_path):
+    """Under ``ulimit -v 6000000`` a 10000 x 10000 render passed the old free-memory check and died with SIGSEGV."""
+    import resource
+
+    export.export_folder(simple_scene(film=S.Film(10_000, 10_000), world=S.ConstantWorld((0.5, 0.5, 0.5))),
+                         S.RenderSettings(), tmp_path / "huge")
+
+    def limit():
+        resource.setrlimit(resource.RLIMIT_AS, (6_000_000 * 1024, resource.RLIM_INFINITY))
+
+    result = subprocess.run([sys.executable, "-m", "scratch_iridescence.mitsuba_bridge", "render", str(tmp_path / "huge"),
+                             "-o", str(tmp_path / "out.exr"), "--spp", "4", *LLVM], capture_output=True, text=True,
+                            cwd=ROOT, timeout=300, preexec_fn=limit)
+    assert result.returncode == 1, result.stderr
+    err = result.stderr.strip()
+    assert err.startswith("error: a 10000 x 10000 render needs about ") and "\n" not in err, err
+    assert "is allowed (address-space limit, ulimit -v 5.7 GiB" in err and not (tmp_path / "out.exr").exists()
+
+
+def test_a_render_too_big_for_its_container_s_cgroup_is_refused(variant, tmp_path, capsys, monkeypatch):
+    """A farm worker's cgroup v2 limit, laid out as /proc/self/cgroup and /sys/fs/cgroup are."""
+    from scratch_iridescence.mitsuba_bridge.device import memory
+
+    (tmp_path / "proc" / "self").mkdir(parents=True)
+    (tmp_path / "proc" / "self" / "cgroup").write_text("0::/farm/worker\n")
+    group = tmp_path / "cgroup" / "farm" / "worker"
+    group.mkdir(parents=True)
+    (group / "memory.max").write_text(f"{256 * 2 ** 20}\n")
+    (group / "memory.current").write_text(f"{100 * 2 ** 20}\n")
+    monkeypatch.setattr(memory, "_PROC", tmp_path / "proc")
+    monkeypatch.setattr(memory, "_CGROUP_ROOT", tmp_path / "cgroup")
+    export.export_folder(simple_scene(film=S.Film(1_500, 1_000), world=S.ConstantWorld((0.5, 0.5, 0.5))),
+                         S.RenderSettings(), tmp_path / "big")
+    assert main(["render", str(tmp_path / "big"), "-o", str(tmp_path / "out.exr"), "--spp", "4", *LLVM]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("error: a 1500 x 1000 render needs about ") and "\n" not in err, err
+    assert "but only 156.0 MiB is allowed (cgroup v2 memory.max 256.0 MiB of /farm/worker, 100.0 MiB in use)" in err
