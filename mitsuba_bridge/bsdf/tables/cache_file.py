@@ -18,7 +18,8 @@ Layout (all integers little-endian)::
   builds and reads tables).  A reader asks for a key, options and code version
   and gets a miss unless all three match: another set's file renamed, copied
   or linked under this name never serves it.
-* **That it is whole.**  The header holds the SHA-256 of the data; the data is
+* **That it is whole.**  The header holds a digest of the data (SHA-256 of its
+  4 MiB blocks' SHA-256, :class:`_BlockDigest`, hashed on all cores); the data is
   hashed while it is read into its arrays, so nothing of a truncated, scaled or
   NaN-filled file is used.
 
@@ -50,6 +51,7 @@ _MAX_ARRAYS = 256
 _ALIGN = 64
 _KINDS = "biuf"  #: numbers only (native order, at most 8 bytes: what the writer writes), no objects or strings
 _CHUNK = 1 << 24
+_BLOCK = 1 << 22  #: bytes per hashed block (:class:`_BlockDigest`)
 
 
 class CacheFileError(ValueError):
@@ -65,12 +67,62 @@ Identity = dict  #: ``{"key": hex, "options": text, "code": hex}``: what a file 
 
 
 def content_digest(arrays: dict[str, np.ndarray]) -> str:
-    """SHA-256 (hex) of the data region :func:`write` lays out for ``arrays`` (as :func:`read` computes it)."""
-    digest = hashlib.sha256()
-    for _, _, padding, array in _layout(arrays):
-        digest.update(_bytes_of(array))
-        digest.update(bytes(padding))
-    return digest.hexdigest()
+    """The digest (hex) of the data region :func:`write` lays out for ``arrays`` (as :func:`read` computes it)."""
+    with _BlockDigest() as digest:
+        for _, _, padding, array in _layout(arrays):
+            digest.update(_bytes_of(array))
+            digest.update(memoryview(bytes(padding)))
+        return digest.hexdigest()
+
+
+class _BlockDigest:
+    """SHA-256 of the SHA-256 digests of a byte stream's :data:`_BLOCK`-byte blocks, in order.
+
+    The blocks are hashed on worker threads as they arrive (``hashlib`` lets go
+    of the GIL), while the caller reads on: checking every byte of a file then
+    costs what one core hashes divided by the cores (SHA-256 runs at about
+    0.4 GB/s on the 2-core development machine).  The views handed to
+    :meth:`update` must not change until :meth:`hexdigest`.
+    """
+
+    def __init__(self):
+        from concurrent.futures import ThreadPoolExecutor
+
+        self._pool = ThreadPoolExecutor(max_workers=min(os.cpu_count() or 1, 8))
+        self._blocks = []
+        self._carry = bytearray()
+
+    def __enter__(self) -> "_BlockDigest":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._pool.shutdown(wait=True, cancel_futures=True)
+
+    def update(self, view: memoryview) -> None:
+        if self._carry:  # complete the block a previous view began
+            taken = view[:_BLOCK - len(self._carry)]
+            self._carry += taken
+            view = view[len(taken):]
+            if len(self._carry) < _BLOCK:
+                return
+            self._submit(bytes(self._carry))
+            self._carry = bytearray()
+        while len(view) >= _BLOCK:
+            self._submit(view[:_BLOCK])
+            view = view[_BLOCK:]
+        self._carry += view
+
+    def _submit(self, block) -> None:
+        self._blocks.append(self._pool.submit(lambda data: hashlib.sha256(data).digest(), block))
+
+    def hexdigest(self) -> str:
+        if self._carry:
+            self._submit(bytes(self._carry))
+            self._carry = bytearray()
+        combined = hashlib.sha256(_BLOCK.to_bytes(8, "little"))
+        for block in self._blocks:
+            combined.update(block.result())
+        return combined.hexdigest()
 
 
 def _bytes_of(array: np.ndarray) -> memoryview:
@@ -153,7 +205,19 @@ def _read_arrays(stream: BinaryIO, header: dict, data_bytes: int) -> tuple[dict,
     directory = header.get("arrays")
     if not isinstance(directory, list) or len(directory) > _MAX_ARRAYS:
         raise CacheFileError("a damaged array directory")
-    position, digest, arrays = 0, hashlib.sha256(), {}
+    with _BlockDigest() as digest:
+        arrays, position = _read_each(stream, directory, data_bytes, digest)
+        if position != data_bytes or stream.read(1):
+            raise CacheFileError("data beyond the arrays its header lists")
+        found = digest.hexdigest()
+    if not hmac.compare_digest(found, str(header.get("content"))):
+        raise CacheFileError("damaged or altered data (its digest does not match the header's)")
+    return arrays, found
+
+
+def _read_each(stream: BinaryIO, directory: list, data_bytes: int, digest: "_BlockDigest") -> tuple[dict, int]:
+    """The arrays of ``directory``, each checked against its place before it is allocated, and where they end."""
+    position, arrays = 0, {}
     whole = lambda value: isinstance(value, int) and not isinstance(value, bool)
     for entry in directory:
         try:
@@ -171,15 +235,10 @@ def _read_arrays(stream: BinaryIO, header: dict, data_bytes: int) -> tuple[dict,
         array = np.empty(shape, dtype=dtype)
         _read_into(stream, memoryview(array.reshape(-1).view(np.uint8)), digest)
         padding = -nbytes % _ALIGN
-        _read_into(stream, memoryview(bytearray(padding)), digest)
+        _read_into(stream, memoryview(bytearray(padding)), digest)  # (a new buffer: the digest may still read it)
         position = offset + nbytes + padding
         arrays[str(name)] = array
-    if position != data_bytes or stream.read(1):
-        raise CacheFileError("data beyond the arrays its header lists")
-    found = digest.hexdigest()
-    if not hmac.compare_digest(found, str(header.get("content"))):
-        raise CacheFileError("damaged or altered data (its digest does not match the header's)")
-    return arrays, found
+    return arrays, position
 
 
 def _read_into(stream: BinaryIO, view: memoryview, digest) -> None:

@@ -156,3 +156,18 @@ def test02_through_the_cache_a_mutated_file_is_a_warning_and_a_miss(tmp_path, mo
 def test03_the_long_run(tmp_path):
     found = run_fuzz(tmp_path, 20_000)
     assert found.get("refused", 0) > 17_000, found
+
+
+def test04_the_block_digest_does_not_depend_on_how_the_data_arrives():
+    """Blocks straddling the pieces handed over (arrays, read chunks, padding) are hashed as one stream."""
+    data = np.random.default_rng(3).integers(0, 256, 3 * cache_file._BLOCK + 12345, dtype=np.uint8)
+    expected = hashlib.sha256(cache_file._BLOCK.to_bytes(8, "little"))
+    for start in range(0, len(data), cache_file._BLOCK):
+        expected.update(hashlib.sha256(data[start:start + cache_file._BLOCK].tobytes()).digest())
+    rng = np.random.default_rng(SEED)
+    for _ in range(5):
+        cuts = np.sort(rng.integers(0, len(data), int(rng.integers(1, 40))))
+        with cache_file._BlockDigest() as digest:
+            for piece in np.split(data, cuts):
+                digest.update(memoryview(piece))
+            assert digest.hexdigest() == expected.hexdigest()
