@@ -21,6 +21,7 @@ import os
 import re
 import secrets
 import stat
+import tempfile
 import time
 from pathlib import Path
 from typing import BinaryIO, Callable, Iterator
