@@ -33,8 +33,9 @@ def register_plugins() -> None:
     Call after ``mi.set_variant(...)``; calling again (or after switching
     variants) is harmless.
     """
-    from .bsdf import translucent
+    from .bsdf import generated, translucent
     from .bsdf import register  # Mitsuba is imported here, not at package import
 
     register()
     translucent.register()
+    generated.register()

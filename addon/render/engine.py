@@ -5,7 +5,7 @@ from __future__ import annotations
 import bpy
 
 from . import backend
-from .frame import render_frame
+from .frame import data_passes, render_frame
 
 __all__ = ["MitsubaScratchEngine", "ENGINE_ID"]
 
@@ -48,6 +48,13 @@ class MitsubaScratchEngine(bpy.types.RenderEngine):
 
     def render(self, depsgraph):
         render_frame(self, depsgraph)
+
+    def update_render_passes(self, scene=None, renderlayer=None):
+        # The passes the view layer asks for (Z, Denoising Data), as Cycles registers them: Blender allocates
+        # them in the render result and the compositor's Render Layers node shows them.
+        self.register_pass(scene, renderlayer, "Combined", 4, "RGBA", "COLOR")
+        for name, (channels, chan_id, kind) in data_passes(scene, renderlayer).items():
+            self.register_pass(scene, renderlayer, name, channels, chan_id, kind)
 
     def view_update(self, context, depsgraph):
         if self.viewport is None:

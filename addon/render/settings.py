@@ -15,6 +15,12 @@ def _tag_scene(settings, context):
     settings.id_data.update_tag()
 
 
+def _tag_view_layers(settings, context):
+    # A pass switched on or off changes the passes Blender allocates and the compositor's sockets.
+    for view_layer in settings.id_data.view_layers:
+        view_layer.update_render_passes()
+
+
 _FILTER_LABELS = {
     "box": ("Box", "One pixel wide box: every glint lands in exactly one pixel (best for scratches)"),
     "tent": ("Tent", "Triangle filter, two pixels wide: slightly softer"),
@@ -66,6 +72,11 @@ class SCRATCH_PG_render(bpy.types.PropertyGroup):
     film_filter: EnumProperty(
         name="Pixel Filter", description="Reconstruction filter of the film",
         items=_FILTER_ITEMS, default="box", update=_tag_scene)
+    denoising_data: BoolProperty(
+        name="Denoising Data",
+        description="Also render the Denoising Albedo and Denoising Normal passes (as Cycles' Denoising Data) "
+                    "for the compositor's Denoise node",
+        default=False, update=_tag_view_layers)
 
 
 def register():

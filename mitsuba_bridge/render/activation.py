@@ -22,8 +22,10 @@ def activate(requested: str = "auto") -> str:
     when that costs a tiny kernel.  Calling again is cheap.
     """
     from .. import register_plugins
+    from . import aovs
 
     variant = set_variant(requested)
     register_plugins()
+    aovs.register()  # Blender's data passes (F12's Depth and denoising passes)
     calibrate()
     return variant

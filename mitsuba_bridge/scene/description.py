@@ -42,7 +42,7 @@ from typing import Optional, Union
 import numpy as np
 
 from ..errors import ParameterError
-from .materials import RGB, Texture
+from .materials import RGB, Texture, Volume
 
 __all__ = ["Film", "Camera", "MeshData", "Shape", "PointLight", "SpotLight", "SunLight", "AreaLight", "Light",
            "ConstantWorld", "EnvironmentWorld", "SkyWorld", "World", "RenderSettings", "SceneDescription",
@@ -212,7 +212,9 @@ class MeshData:
 
     ``positions`` (N, 3) float32, ``faces`` (M, 3) uint32, optional per-vertex
     ``normals`` (N, 3) float32 (None: flat shading) and ``uvs`` (N, 2) float32.
-    Several shapes (instances) may share one MeshData.
+    ``generated`` (N, 3) float32 are Blender's Generated texture coordinates (the
+    mesh's texture space mapped to [0, 1]³), given when a material looks textures
+    up there. Several shapes (instances) may share one MeshData.
     """
 
     name: str
@@ -220,6 +222,7 @@ class MeshData:
     faces: np.ndarray
     normals: Optional[np.ndarray] = None
     uvs: Optional[np.ndarray] = None
+    generated: Optional[np.ndarray] = None
 
     def __post_init__(self):
         n = len(self.positions)
@@ -231,6 +234,8 @@ class MeshData:
             raise ValueError(f"mesh {self.name!r}: normals must be (N, 3)")
         if self.uvs is not None and self.uvs.shape != (n, 2):
             raise ValueError(f"mesh {self.name!r}: uvs must be (N, 2)")
+        if self.generated is not None and self.generated.shape != (n, 3):
+            raise ValueError(f"mesh {self.name!r}: generated coordinates must be (N, 3)")
         if len(self.faces) and int(self.faces.max()) >= n:
             raise ValueError(f"mesh {self.name!r}: face index out of range")
 
@@ -393,6 +398,8 @@ class RenderSettings:
     max_depth: int = 8
     seed: int = 0
     variant: str = "auto"
+    #: also render Blender's data passes (Depth, Denoising Albedo and Normal; F12 when the view layer asks)
+    data_passes: bool = False
 
     def __post_init__(self):
         _whole("spp", self.spp, 1)
@@ -401,11 +408,17 @@ class RenderSettings:
         _whole("seed", self.seed)
         if not isinstance(self.variant, str):
             raise ParameterError(f"variant must be a name, got {self.variant!r}")
+        if not isinstance(self.data_passes, (bool, np.bool_)):
+            raise ParameterError(f"data_passes must be True or False, got {self.data_passes!r}")
 
 
 @dataclass(frozen=True, eq=False)
 class SceneDescription:
-    """Everything the builder needs, plus the warnings met while gathering it."""
+    """Everything the builder needs, plus the warnings met while gathering it.
+
+    ``world_volume`` fills all space outside the closed meshes that carry a volume of their own (Blender's
+    world Volume output): the camera, the lights and every surface sit in it.
+    """
 
     film: Film
     camera: Camera
@@ -414,6 +427,7 @@ class SceneDescription:
     lights: tuple = ()
     world: Optional[World] = None
     warnings: tuple[str, ...] = ()
+    world_volume: Optional[Volume] = None
 
     def __post_init__(self):
         for name, value, kind in (("film", self.film, Film), ("camera", self.camera, Camera)):
@@ -431,6 +445,8 @@ class SceneDescription:
         if self.world is not None and not isinstance(self.world, WORLD_TYPES):
             raise ParameterError(f"the world must be one of {', '.join(t.__name__ for t in WORLD_TYPES)} or None, "
                                  f"got {type(self.world).__name__}")
+        if self.world_volume is not None and not isinstance(self.world_volume, Volume):
+            raise ParameterError(f"the world's volume must be a Volume or None, got {type(self.world_volume).__name__}")
 
     @property
     def triangle_count(self) -> int:

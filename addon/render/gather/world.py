@@ -19,8 +19,9 @@ from ....mitsuba_bridge.scene import ConstantWorld, EnvironmentWorld, SkyWorld
 from .materials import linked_node
 from .report import Warnings
 from .textures import MISSING, gather_image
+from .volumes import gather_volume
 
-__all__ = ["gather_world", "sky_from_node", "SKY_SCALES"]
+__all__ = ["gather_world", "gather_world_volume", "sky_from_node", "SKY_SCALES"]
 
 #: sky type → (sky radiance, sun radiance) of Blender's model relative to Mitsuba's sunsky.
 SKY_SCALES = {
@@ -123,3 +124,13 @@ def gather_world(world, warnings: Warnings):
                   "its own colour is used")
     colour = tuple(float(c) * strength for c in background.inputs["Color"].default_value[:3])
     return ConstantWorld(colour) if any(c > 0 for c in colour) else None
+
+
+def gather_world_volume(world, warnings: Warnings):
+    """The world's volume (its output's Volume), filling the space around everything, or None."""
+    tree = world.node_tree if world is not None else None
+    output = tree.get_output_node("CYCLES") if tree is not None else None
+    if output is None or "Volume" not in output.inputs:
+        return None
+    volume = gather_volume(output.inputs["Volume"], warnings, "world")
+    return None if volume is None or volume.empty else volume
