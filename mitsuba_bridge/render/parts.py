@@ -119,7 +119,8 @@ def schedule_digest(chunks: list[Chunk]) -> str:
 
 @contextlib.contextmanager
 def recording_tables():
-    """Around a scene's load: yields a list of the scratch tables its BSDFs took or built (for :func:`tables_fingerprint`)."""
+    """Around a scene's load: yields a list of the scratch tables its BSDFs took or built
+    (for :func:`tables_fingerprint`)."""
     from ..bsdf import persistent
 
     with persistent.recording() as found:

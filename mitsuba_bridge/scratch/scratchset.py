@@ -275,9 +275,9 @@ def validate_arrays(arrays: dict[str, np.ndarray]) -> None:
             raise ScratchFormatError("contains NaN or infinity", name)
     largest = float(np.abs(uv).max(initial=0.0))  # (NaN propagates: one pass checks both)
     if not largest <= MAX_UV_COORDINATE:
-        raise ScratchFormatError("contains NaN or infinity" if not np.isfinite(largest) else
-                                 f"coordinates must lie within ±{MAX_UV_COORDINATE:g} UV units; largest is {largest:g}",
-                                 "uv")
+        raise ScratchFormatError(
+            "contains NaN or infinity" if not np.isfinite(largest) else
+            f"coordinates must lie within ±{MAX_UV_COORDINATE:g} UV units; largest is {largest:g}", "uv")
     for name in ("width", "depth"):
         if np.any(arrays[name] <= 0):
             raise ScratchFormatError(f"must be > 0 (metres); smallest is {arrays[name].min()!r}", name)

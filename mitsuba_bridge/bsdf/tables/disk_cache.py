@@ -62,8 +62,9 @@ from . import cache_file
 from ...files.atomic import remove_stale_temporaries, write_atomically
 from ...files.regular import NotARegularFile, open_regular
 
-__all__ = ["directory", "set_root", "code_fingerprint", "fingerprinted_sources", "limit_bytes", "load", "store", "load_tables",
-           "store_tables", "tables_digest", "statistics", "DEFAULT_LIMIT_MB", "MIN_BUILD_SECONDS", "SUBFOLDER"]
+__all__ = ["directory", "set_root", "code_fingerprint", "fingerprinted_sources", "limit_bytes", "load", "store",
+           "load_tables", "store_tables", "tables_digest", "statistics", "DEFAULT_LIMIT_MB", "MIN_BUILD_SECONDS",
+           "SUBFOLDER"]
 
 #: Default size limit of the cache folder (MB).
 DEFAULT_LIMIT_MB = 2048
@@ -76,7 +77,8 @@ _NAME = re.compile(r"[0-9a-f]{40}" + re.escape(_SUFFIX))
 _SECRET, _TAG = "secret.key", "CACHEDIR.TAG"
 _TAG_SIGNATURE = "Signature: 8a477f597d28d172789f06886806bc55"
 _TAG_TEXT = (f"{_TAG_SIGNATURE}\n# This folder is the scratch tables cache of Scratch Iridescence (any file here may "
-             "be deleted at any time).\n# For information about cache directory tags see https://bford.info/cachedir/\n")
+             "be deleted at any time).\n"
+             "# For information about cache directory tags see https://bford.info/cachedir/\n")
 _OWN = re.compile(rf"{_NAME.pattern}|{re.escape(_SECRET)}|{re.escape(_TAG)}|\..+\.[0-9a-f]{{8}}\.tmp")
 
 _log = logging.getLogger(__name__)

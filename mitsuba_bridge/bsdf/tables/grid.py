@@ -200,7 +200,8 @@ def least_pieces(scratches: ScratchSet) -> int:
 
 def check_piece_memory(scratches: ScratchSet) -> None:
     """Refuse (:class:`~mitsuba_bridge.device.memory.NotEnoughMemory`) a set whose tables cannot fit even at the least
-    memory per piece: scratches hundreds or thousands of UV units long, as the format allows (docs/scratch-format.md)."""
+    memory per piece: scratches hundreds or thousands of UV units long, as the format allows
+    (docs/scratch-format.md)."""
     if scratches.count == 0:
         return
     pieces = least_pieces(scratches)

@@ -123,7 +123,8 @@ CASES = [
      write("scratches/plate.npz", b"PK\x03\x04" + bytes(300)), "scratch file"),
     # values beyond the format's bounds (docs/scratch-format.md): refused by name, never an internal error
     ("depth variation 1e300", ["render", "{case}", "-o", "{out}"],
-     write("scratches/plate.npz", extreme_file("depth_variation", _set((0, 0), 1e300))), "amplitude must be at most 10"),
+     write("scratches/plate.npz", extreme_file("depth_variation", _set((0, 0), 1e300))),
+     "amplitude must be at most 10"),
     ("variation frequency 1e300", ["render", "{case}", "-o", "{out}"],
      write("scratches/plate.npz", extreme_file("width_variation", _set((3, 1), 1e300))), "frequency at most 1"),
     ("uv spread to 1e300", ["render", "{case}", "-o", "{out}"],
@@ -277,9 +278,9 @@ def test_a_render_too_big_for_ulimit_v_is_refused_not_a_crash(variant, tmp_path)
     def limit():
         resource.setrlimit(resource.RLIMIT_AS, (6_000_000 * 1024, resource.RLIM_INFINITY))
 
-    result = subprocess.run([sys.executable, "-m", "scratch_iridescence.mitsuba_bridge", "render", str(tmp_path / "huge"),
-                             "-o", str(tmp_path / "out.exr"), "--spp", "4", *LLVM], capture_output=True, text=True,
-                            cwd=ROOT, timeout=300, preexec_fn=limit)
+    result = subprocess.run([sys.executable, "-m", "scratch_iridescence.mitsuba_bridge", "render",
+                             str(tmp_path / "huge"), "-o", str(tmp_path / "out.exr"), "--spp", "4", *LLVM],
+                            capture_output=True, text=True, cwd=ROOT, timeout=300, preexec_fn=limit)
     assert result.returncode == 1, result.stderr
     err = result.stderr.strip()
     assert err.startswith("error: a 10000 x 10000 render needs about ") and "\n" not in err, err

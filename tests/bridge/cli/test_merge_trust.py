@@ -109,7 +109,8 @@ HEADER_CASES = [
     ("nodes garbage", field("nodes", "x" * 5000), None, "not the sums of chunks"),
     ("format of an older version", field("format", "scratch-iridescence/render-part/1"), None, "older version"),
     ("no format", lambda header: header.pop("format"), None, "not a render part"),
-    ("another image size", None, lambda ch: ch.update({n: np.concatenate([v, v[:, :1]], axis=1) for n, v in ch.items()}),
+    ("another image size", None,
+     lambda ch: ch.update({n: np.concatenate([v, v[:, :1]], axis=1) for n, v in ch.items()}),
      "not the 32 x 24 image"),
     ("a channel missing", None, lambda channels: channels.pop("sum.L0.N5.A.lo", None) or channels.pop(sorted(
         n for n in channels if n.startswith("sum."))[0]), "its channels are not RGBA and the sums"),

@@ -1,5 +1,6 @@
-"""What this process may still allocate (mitsuba_bridge/device/memory.py): free memory, ``ulimit -v``/``-d`` and cgroup v1
-and v2 limits, read from real files laid out as ``/proc`` and ``/sys/fs/cgroup`` are, and from real rlimits in a child."""
+"""What this process may still allocate (mitsuba_bridge/device/memory.py): free memory, ``ulimit -v``/``-d`` and
+cgroup v1 and v2 limits, read from real files laid out as ``/proc`` and ``/sys/fs/cgroup`` are, and from real rlimits
+in a child."""
 from __future__ import annotations
 
 import resource

@@ -42,5 +42,6 @@ def test_an_interactive_session_s_films_are_estimated_too():
     assert footprint.estimate_session_bytes(100, 50) == 5000 * (36 + 48)
     assert footprint.estimate_session_bytes(100, 50, preview_divisor=4, strip_pixels=1000) == \
         (5000 + 25 * 13 + 1000) * 36 + 5000 * 48
-    with pytest.raises(footprint.NotEnoughMemory, match=r"a 100000 x 100000 interactive render needs about 782.3 GiB of memory but only 16.0 GiB is allowed \(free"):
+    with pytest.raises(footprint.NotEnoughMemory, match=r"a 100000 x 100000 interactive render needs about "
+                                                        r"782.3 GiB of memory but only 16.0 GiB is allowed \(free"):
         footprint.check_session_memory(100_000, 100_000, limit=MemoryLimit(2 ** 34, "free memory, MemAvailable"))

@@ -148,8 +148,9 @@ def test06_a_closed_session_says_so_for_every_call(variant):
     closed = interactive.Session(plate(), SETTINGS, samples=1)
     closed.close()
     calls = [lambda: closed.step(), lambda: closed.set_camera(S.Camera(EYE)), lambda: closed.set_film(S.Film(8, 8)),
-             lambda: closed.set_transform("plate", np.eye(4)), lambda: closed.set_light(0, S.PointLight((0, 0, 1), (1,) * 3)),
-             lambda: closed.set_world(None), lambda: closed.apply(interactive.Update(interactive.Change.WORLD, (None,))),
+             lambda: closed.set_transform("plate", np.eye(4)),
+             lambda: closed.set_light(0, S.PointLight((0, 0, 1), (1,) * 3)), lambda: closed.set_world(None),
+             lambda: closed.apply(interactive.Update(interactive.Change.WORLD, (None,))),
              lambda: closed.rebuild(plate())]
     for call in calls:
         with pytest.raises(interactive.SessionClosed, match="the session is closed"):

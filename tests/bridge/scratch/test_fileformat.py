@@ -126,7 +126,8 @@ def _mutations():
         ("negative depth", "depth", set_("depth", np.array([1e-7, -1e-7]))),
         ("negative variation", "width_variation", set_("width_variation", np.array([[-0.1, 0.0], [0.0, 0.0]]))),
         # the format's bounds (docs/scratch-format.md): beyond them no renderer's tables fit any machine
-        ("uv spread to 1e300", "uv", set_("uv", lambda a: np.where(np.arange(10).reshape(5, 2) == 3, 1e300, a["uv"]))),
+        ("uv spread to 1e300", "uv",
+         set_("uv", lambda a: np.where(np.arange(10).reshape(5, 2) == 3, 1e300, a["uv"]))),
         ("uv beyond 1e4", "uv", set_("uv", lambda a: a["uv"] - 10_001.0)),
         ("depth variation amplitude 1e300", "depth_variation",
          set_("depth_variation", np.array([[1e300, 0.04], [0.0, 0.0]]))),

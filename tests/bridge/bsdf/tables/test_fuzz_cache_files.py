@@ -28,7 +28,8 @@ MAX_BYTES = 1 << 20
 
 def original() -> tuple[bytes, dict, dict]:
     rng = np.random.default_rng(1)
-    arrays = {"tables.segments": rng.random((40, 8)).astype(np.float32), "tables.references": np.arange(77, dtype=np.uint32),
+    arrays = {"tables.segments": rng.random((40, 8)).astype(np.float32),
+              "tables.references": np.arange(77, dtype=np.uint32),
               "tables.cell_start": np.arange(10, dtype=np.uint32), "scan.bucketed": np.array([True]),
               "cache.a": rng.random((40, 2)), "empty": np.zeros((0, 4), np.float32)}
     records = {"tables": {"segments": ["array", None], "origin": ["value", [0.0, 0.25]]}, "cache": {"crossings": [
