@@ -287,18 +287,9 @@ def test_a_render_too_big_for_ulimit_v_is_refused_not_a_crash(variant, tmp_path)
     assert "is allowed (address-space limit, ulimit -v 5.7 GiB" in err and not (tmp_path / "out.exr").exists()
 
 
-def test_a_render_too_big_for_its_container_s_cgroup_is_refused(variant, tmp_path, capsys, monkeypatch):
+def test_a_render_too_big_for_its_container_s_cgroup_is_refused(variant, tmp_path, capsys, farm_cgroup):
     """A farm worker's cgroup v2 limit, laid out as /proc/self/cgroup and /sys/fs/cgroup are."""
-    from scratch_iridescence.mitsuba_bridge.device import memory
-
-    (tmp_path / "proc" / "self").mkdir(parents=True)
-    (tmp_path / "proc" / "self" / "cgroup").write_text("0::/farm/worker\n")
-    group = tmp_path / "cgroup" / "farm" / "worker"
-    group.mkdir(parents=True)
-    (group / "memory.max").write_text(f"{256 * 2 ** 20}\n")
-    (group / "memory.current").write_text(f"{100 * 2 ** 20}\n")
-    monkeypatch.setattr(memory, "_PROC", tmp_path / "proc")
-    monkeypatch.setattr(memory, "_CGROUP_ROOT", tmp_path / "cgroup")
+    farm_cgroup(256, 100)
     export.export_folder(simple_scene(film=S.Film(1_500, 1_000), world=S.ConstantWorld((0.5, 0.5, 0.5))),
                          S.RenderSettings(), tmp_path / "big")
     assert main(["render", str(tmp_path / "big"), "-o", str(tmp_path / "out.exr"), "--spp", "4", *LLVM]) == 1
