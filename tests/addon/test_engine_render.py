@@ -209,13 +209,35 @@ def test_no_camera_is_refused_before_rendering(empty_scene, tmp_path):
 def test_a_render_bigger_than_free_memory_is_refused_with_the_estimate(lit, tmp_path, monkeypatch):
     from scratch_iridescence.mitsuba_bridge.device import memory
 
-    # (as the real check reads a container's limit: tests/bridge/device/test_memory.py lays out real cgroup files)
+    # (as the real check reads a container's limit: tests/bridge/device/test_memory_limits.py lays out real cgroup files)
     monkeypatch.setattr(memory, "smallest_limit", lambda **paths: memory.MemoryLimit(10_000, "cgroup v2 memory.max"))
     lit.render.filepath = str(tmp_path / "big.exr")
     with pytest.raises(RuntimeError, match=r"a 32 x 24 render needs about 0\.\d MiB of memory .* only 0\.0 MiB is "
                                            r"allowed \(cgroup v2 memory.max\)"):
         bpy.ops.render.render(write_still=True)
     assert not (tmp_path / "big.exr").exists()
+
+
+@pytest.mark.parametrize("where", ["before loading", "inside Mitsuba's loader"])
+def test_scratch_tables_that_cannot_fit_are_one_error_without_a_traceback(lit, tmp_path, capfd, monkeypatch, where):
+    """A set within the format's bounds whose tables no machine holds (a thousand scratches 2·10⁴ UV units long):
+    F12 says what they need, never a traceback, whether the builder's check or the plugin's own build meets it
+    (Mitsuba hands a plugin's exception on as the cause of its own)."""
+    from scratch_iridescence.addon import storage
+    from scratch_iridescence.mitsuba_bridge import builder, scratch
+
+    lines = [np.array([[-1e4, -9e3 + k], [1e4, 9e3 - k]]) for k in range(1000)]
+    plane = next(obj for obj in lit.objects if obj.type == "MESH")
+    storage.write_scratches(plane, scratch.ScratchSet.from_polylines(lines, width=1e-6, depth=1e-7))
+    if where != "before loading":
+        monkeypatch.setattr(builder, "check_tables_memory", lambda description: None)
+    lit.render.filepath = str(tmp_path / "long.exr")
+    capfd.readouterr()
+    with pytest.raises(RuntimeError, match=r"Mitsuba Scratch: building the tables of 1,000 scratches needs about "
+                                           r"298\.0 GiB of memory .* but only .* is allowed") as refused:
+        bpy.ops.render.render(write_still=True)
+    assert "rendering failed" not in str(refused.value) and "Traceback" not in capfd.readouterr().err
+    assert not (tmp_path / "long.exr").exists()
 
 
 def test_rendering_error_is_reported_not_a_black_image(empty_scene, tmp_path, monkeypatch):

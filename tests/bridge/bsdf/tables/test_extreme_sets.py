@@ -49,13 +49,29 @@ def test02_a_set_at_the_variation_bounds_and_far_apart_renders(variant):
     assert np.all(np.isfinite(image)) and image.max() > 0
 
 
-def test03_tables_that_cannot_fit_are_refused_with_an_estimate_before_anything_is_built(variant):
+def long_scratches() -> scratch.ScratchSet:
+    """A thousand scratches 2·10⁴ UV units long: within the format's bounds, beyond any machine's tables."""
     lines = [np.array([[-MAX_UV_COORDINATE, -9e3 + k], [MAX_UV_COORDINATE, 9e3 - k]]) for k in range(1000)]
-    long_set = scratch.ScratchSet.from_polylines(lines, width=1e-6, depth=1e-7)
+    return scratch.ScratchSet.from_polylines(lines, width=1e-6, depth=1e-7)
+
+
+REFUSAL = r"building the tables of 1,000 scratches needs about 298.0 GiB of memory \(at least 1,280,000,000 pieces "
+
+
+def test03_tables_that_cannot_fit_are_refused_with_an_estimate_before_anything_is_built(variant):
+    long_set = long_scratches()
     assert grid.least_pieces(long_set) == 1000 * 64 * 20_000
-    with pytest.raises(NotEnoughMemory, match=r"building the tables of 1,000 scratches needs about 298.0 GiB of "
-                                              r"memory \(at least 1,280,000,000 pieces .*\) but only .* is allowed"):
+    with pytest.raises(NotEnoughMemory, match=REFUSAL + r".*\) but only .* is allowed"):
         builder.load_scene(plate(long_set), S.RenderSettings(spp=1))
+
+
+def test03b_met_inside_mitsuba_s_loader_the_refusal_is_still_the_user_error(variant, monkeypatch):
+    """Mitsuba's parser turns a Python plugin's exception into a RuntimeError quoting its traceback; the loader
+    hands on the user error itself, Mitsuba's kept as its cause (mitsuba_bridge/errors.py)."""
+    monkeypatch.setattr(builder, "check_tables_memory", lambda description: None)  # the plugin's own build meets it
+    with pytest.raises(NotEnoughMemory, match=REFUSAL) as refused:
+        builder.load_scene(plate(long_scratches()), S.RenderSettings(spp=1))
+    assert isinstance(refused.value.__cause__, RuntimeError) and "scratch_diffraction" in str(refused.value.__cause__)
 
 
 @pytest.mark.slow
