@@ -239,6 +239,26 @@ def test10_engine_paths_build_update_draw_and_stop(studio):
     assert viewport.join(timeout=30.0)
 
 
+def test10b_a_user_error_is_shown_in_the_viewport_without_a_traceback(studio, capfd):
+    """Scratch tables no machine holds (a thousand scratches 2·10⁴ UV units long, within the format's bounds):
+    the viewport shows what they need, the console no traceback (there is no bug to report), Blender goes on."""
+    pytest.importorskip("mitsuba")
+    from scratch_iridescence.mitsuba_bridge import scratch
+
+    lines = [np.array([[-1e4, -9e3 + k], [1e4, 9e3 - k]]) for k in range(1000)]
+    storage.write_scratches(studio.plane, scratch.ScratchSet.from_polylines(lines, width=1e-6, depth=1e-7))
+    viewport = ViewportRender()
+    capfd.readouterr()
+    viewport.view_update(view_of(studio.camera), bpy.context.evaluated_depsgraph_get())
+    wait_for(viewport, lambda: viewport.latest()[3] is not None)
+    error = viewport.latest()[3]
+    assert error.startswith("Mitsuba Scratch viewport: building the tables of 1,000 scratches needs about 298.0 GiB"), \
+        error
+    assert "Traceback" not in capfd.readouterr().err
+    viewport.stop()
+    assert viewport.join(timeout=30.0)
+
+
 def test11_camera_view_with_a_render_border_renders_only_the_border(studio):
     """The border's fractions of the camera frame become the film's crop window, as Cycles renders it."""
     view = view_of(studio.camera)  # the frame fills the region: same aspect as the render resolution
