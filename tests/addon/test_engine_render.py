@@ -9,7 +9,8 @@ import pytest
 
 bpy = pytest.importorskip("bpy")
 from render_scenes import (add_camera, add_light, add_plane, blender_pixel, bright_centroid, emission,  # noqa: E402
-                           material, missing_image, render_to, set_world, setup_render, textured)
+                           material, missing_image, render_to, set_world, setup_render, store_unfittable_scratches,
+                           textured)
 from scratch_iridescence.addon.render.frame import render_frame  # noqa: E402
 from scratch_iridescence.mitsuba_bridge.files.exr import read_exr  # noqa: E402
 
@@ -223,12 +224,9 @@ def test_scratch_tables_that_cannot_fit_are_one_error_without_a_traceback(lit, t
     """A set within the format's bounds whose tables no machine holds (a thousand scratches 2·10⁴ UV units long):
     F12 says what they need, never a traceback, whether the builder's check or the plugin's own build meets it
     (Mitsuba hands a plugin's exception on as the cause of its own)."""
-    from scratch_iridescence.addon import storage
-    from scratch_iridescence.mitsuba_bridge import builder, scratch
+    from scratch_iridescence.mitsuba_bridge import builder
 
-    lines = [np.array([[-1e4, -9e3 + k], [1e4, 9e3 - k]]) for k in range(1000)]
-    plane = next(obj for obj in lit.objects if obj.type == "MESH")
-    storage.write_scratches(plane, scratch.ScratchSet.from_polylines(lines, width=1e-6, depth=1e-7))
+    store_unfittable_scratches(next(obj for obj in lit.objects if obj.type == "MESH"))
     if where != "before loading":
         monkeypatch.setattr(builder, "check_tables_memory", lambda description: None)
     lit.render.filepath = str(tmp_path / "long.exr")

@@ -13,7 +13,8 @@ import pytest
 
 bpy = pytest.importorskip("bpy")
 from strokes import stroke  # noqa: E402
-from render_scenes import add_camera, add_light, material, set_world, setup_render  # noqa: E402
+from render_scenes import (add_camera, add_light, material, set_world, setup_render,  # noqa: E402
+                           store_unfittable_scratches)
 from scratch_iridescence.addon import storage  # noqa: E402
 from scratch_iridescence.addon.render import sync  # noqa: E402
 from scratch_iridescence.addon.render.gather import Warnings, gather_scene  # noqa: E402
@@ -243,10 +244,7 @@ def test10b_a_user_error_is_shown_in_the_viewport_without_a_traceback(studio, ca
     """Scratch tables no machine holds (a thousand scratches 2·10⁴ UV units long, within the format's bounds):
     the viewport shows what they need, the console no traceback (there is no bug to report), Blender goes on."""
     pytest.importorskip("mitsuba")
-    from scratch_iridescence.mitsuba_bridge import scratch
-
-    lines = [np.array([[-1e4, -9e3 + k], [1e4, 9e3 - k]]) for k in range(1000)]
-    storage.write_scratches(studio.plane, scratch.ScratchSet.from_polylines(lines, width=1e-6, depth=1e-7))
+    store_unfittable_scratches(studio.plane)
     viewport = ViewportRender()
     capfd.readouterr()
     viewport.view_update(view_of(studio.camera), bpy.context.evaluated_depsgraph_get())
