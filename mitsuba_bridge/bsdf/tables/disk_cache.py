@@ -22,9 +22,11 @@ finds the tables a previous one built for the same set.
   ``CACHEDIR.TAG`` (the Cache Directory Tagging convention, so backups skip it),
   and touches nothing there but its own files: ``<40 hex>.scratch-tables``,
   their temporary siblings and ``secret.key``.  A ``tables/`` folder that holds
-  other files and no tag is not used (one warning).  The secret (32 random bytes,
-  mode 0600) must belong to this user and be readable by no one else; a cache
-  folder shared by a farm is shared by one user account.
+  other files and no tag is not used (one warning); the first version's folder
+  (its ``<40 hex>.npz`` files and ``.writing-*.tmp`` only) is taken over, those
+  files removed.  The secret (32 random bytes, mode 0600) must belong to this
+  user and be readable by no one else; a cache folder shared by a farm is shared
+  by one user account.
 * **Size**: at most ``SCRATCH_IRIDESCENCE_CACHE_MB`` (default ``DEFAULT_LIMIT_MB``)
   in all; the least recently used files go first (a hit touches its file).  A
   value that is not a finite number ≥ 0 (``nan``, ``inf``, ``1e400``, text)
@@ -80,6 +82,9 @@ _TAG_TEXT = (f"{_TAG_SIGNATURE}\n# This folder is the scratch tables cache of Sc
              "be deleted at any time).\n"
              "# For information about cache directory tags see https://bford.info/cachedir/\n")
 _OWN = re.compile(rf"{_NAME.pattern}|{re.escape(_SECRET)}|{re.escape(_TAG)}|\..+\.[0-9a-f]{{8}}\.tmp")
+#: What the cache's first version left in the same default folder (``<40 hex>.npz`` with a ``meta.json`` member,
+#: ``.writing-<8>.tmp`` of killed writes; no tag, no signature): the folder is taken over and those files removed.
+_LEGACY = re.compile(r"[0-9a-f]{40}\.npz|\.writing-[a-z0-9_]{8}\.tmp")
 
 _log = logging.getLogger(__name__)
 _lock = threading.Lock()
@@ -193,16 +198,34 @@ def _tagged(folder: Path, create: bool) -> bool:
                 return True
     except (FileNotFoundError, NotARegularFile):
         pass
-    foreign = sorted(entry.name for entry in os.scandir(folder) if not _OWN.fullmatch(entry.name))
+    names = [entry.name for entry in os.scandir(folder)]
+    legacy = [name for name in names if _LEGACY.fullmatch(name) and _written_by_the_first_version(folder / name)]
+    foreign = sorted(name for name in names if not _OWN.fullmatch(name) and name not in legacy)
     if foreign:
         _warn_once(("foreign", str(folder)), "scratch tables cache: %s holds files the cache did not write (%s) and "
                    "no %s; it is not used (point SCRATCH_IRIDESCENCE_CACHE_DIR at a folder of its own)",
                    folder, ", ".join(foreign[:3]) + (", ..." if len(foreign) > 3 else ""), _TAG)
         return False
     if create:
+        for name in legacy:  # (tables no version of this code reads again)
+            (folder / name).unlink(missing_ok=True)
         write_atomically(tag, lambda stream: stream.write(_TAG_TEXT.encode()))
         return True
     return False
+
+
+def _written_by_the_first_version(path: Path) -> bool:
+    """Whether ``path`` is what the cache's first version wrote: a killed write's temporary file, or a regular
+    zip file (``np.savez``) holding its ``meta.json`` record."""
+    import zipfile
+
+    if path.name.startswith(".writing-"):
+        return path.is_file() and not path.is_symlink()
+    try:
+        with open_regular(path, follow_symlinks=False) as stream, zipfile.ZipFile(stream) as archive:
+            return "meta.json.npy" in archive.namelist()
+    except (OSError, NotARegularFile, zipfile.BadZipFile, ValueError):
+        return False
 
 
 def _secret(folder: Path, create: bool) -> bytes | None:

@@ -168,6 +168,31 @@ def test04_a_folder_of_the_user_s_files_is_never_touched(tmp_path, monkeypatch, 
     assert [p.name for p in (mine / "tables").iterdir()] == ["grid.npz"]
 
 
+def test04b_the_first_version_s_cache_folder_is_taken_over_and_a_look_alike_is_not(cache, caplog, monkeypatch):
+    """The default folder of the cache's first version (``<40 hex>.npz`` files holding a ``meta.json``, killed
+    writes' ``.writing-*.tmp``, no tag) is this cache's now: its files go with the first write, without a warning.
+    A file of the same name that the first version could not have written keeps the folder the user's."""
+    cache.mkdir(parents=True)
+    for k in range(3):  # (as the first version wrote them: np.savez of the arrays and a meta.json record)
+        np.savez(cache / f"{k:040x}.npz", **{"meta.json": np.array('{"format": 1}'), "tables.segments": np.zeros(4)})
+    (cache / ".writing-ab12_x9z.tmp").write_bytes(b"a killed write")
+    with caplog.at_level(logging.WARNING, logger=disk_cache.__name__):
+        own, expected = written_by(cache, grating(tracks=41))
+    assert "did not write" not in caplog.text
+    assert {p.name for p in cache.iterdir()} == {"CACHEDIR.TAG", "secret.key", own.name}
+    assert same(evaluate(load(grating(tracks=41), coherent=False)), expected)
+    # the same names in an untagged folder, one of them a user's array file: nothing is used or removed
+    look_alike = cache.parent / "look-alike" / disk_cache.SUBFOLDER
+    look_alike.mkdir(parents=True)
+    np.savez(look_alike / f"{1:040x}.npz", data=np.arange(3))
+    np.savez(look_alike / f"{2:040x}.npz", **{"meta.json": np.array("{}")})
+    monkeypatch.setenv("SCRATCH_IRIDESCENCE_CACHE_DIR", str(look_alike.parent))
+    with caplog.at_level(logging.WARNING, logger=disk_cache.__name__):
+        load(grating(tracks=43), coherent=False)
+    assert f"holds files the cache did not write ({1:040x}.npz)" in caplog.text
+    assert sorted(p.name for p in look_alike.iterdir()) == [f"{1:040x}.npz", f"{2:040x}.npz"]
+
+
 @pytest.mark.parametrize("value", ["nan", "inf", "-inf", "1e400", "junk", "-5", ""])
 def test05_a_size_limit_that_is_not_a_size_means_the_default_with_a_warning(monkeypatch, caplog, value):
     monkeypatch.setenv("SCRATCH_IRIDESCENCE_CACHE_MB", value)
