@@ -49,6 +49,12 @@ def plugin_user_errors():
         yield
     except Exception as error:
         noted, _plugin.error = getattr(_plugin, "error", None), None
-        if noted is not None and noted is not error:
-            raise noted from error
-        raise
+        if noted is None or noted is error:
+            raise
+        # Raised without its own traceback (Mitsuba's message, its cause, quotes it): the plugin's frames hold the
+        # half-built BSDF, which must go now, not at the next garbage collection (a cycle through this frame
+        # would keep it): Dr.Jit calls every live BSDF of the variant, so the next render would call it.
+        try:
+            raise noted.with_traceback(None) from error
+        finally:
+            noted = None
