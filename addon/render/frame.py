@@ -53,7 +53,8 @@ def _fail(engine, message: str) -> None:
 
 
 def _user_error(error: BaseException):
-    """The :class:`ScratchUserError` behind ``error`` (Mitsuba raises a plugin's exception as the cause of its own)."""
+    """The :class:`ScratchUserError` that is ``error`` or its cause or context, if any (the bridge's loader hands on a
+    plugin's user error itself: :func:`...mitsuba_bridge.errors.plugin_user_errors`)."""
     seen = set()
     while error is not None and id(error) not in seen:
         if isinstance(error, ScratchUserError):
