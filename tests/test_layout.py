@@ -137,7 +137,7 @@ BRIDGE_ROOMS = {
     "files": {"errors"},
     "scratch": {"errors", "files"},
     "bsdf/maths": set(),
-    "bsdf/tables": {"errors", "scratch"},
+    "bsdf/tables": {"errors", "device", "files", "scratch"},
     "bsdf": {"errors", "scratch", "bsdf/maths", "bsdf/tables"},
     "scene": {"errors", "scratch", "bsdf"},
     "builder": {"errors", "files", "scratch", "bsdf", "bsdf/tables", "scene"},

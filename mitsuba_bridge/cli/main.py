@@ -20,7 +20,9 @@ from pathlib import Path
 
 from . import batch, farm
 from .. import scratch
+from ..device.memory import NotEnoughMemory, check_memory, format_bytes
 from ..errors import ParameterError
+from ..scratch.scratchset import MAX_SCRATCHES, MAX_VERTICES
 
 
 def _info(args) -> int:
@@ -52,6 +54,19 @@ def _generate(args) -> int:
         return 2
     if args.count < 1:
         raise batch.CommandError(f"--count must be at least 1, got {args.count}", 2)
+    if args.vertices < 2:
+        raise batch.CommandError(f"--vertices: a scratch needs at least 2 vertices, got {args.vertices}", 2)
+    needed = scratch.estimate_generate_bytes(args.count, args.vertices)
+    if args.count > MAX_SCRATCHES or args.count * args.vertices > MAX_VERTICES:
+        raise batch.CommandError(
+            f"--count {args.count:,} of {args.vertices} vertices: a scratch file holds at most {MAX_SCRATCHES:,} "
+            f"scratches and {MAX_VERTICES:,} vertices (these would also need about {format_bytes(needed)} of "
+            "memory to generate)", 2)
+    try:
+        check_memory(needed, f"generating {args.count:,} scratches of {args.vertices} vertices",
+                     advice="ask for fewer")
+    except NotEnoughMemory as error:
+        raise batch.CommandError(str(error)) from None
     if not 0 < args.length_min <= args.length_max:
         raise batch.CommandError(f"need 0 < --length-min <= --length-max, got {args.length_min} and "
                                  f"{args.length_max}", 2)
@@ -91,6 +106,21 @@ def _validate(args) -> int:
     return 0
 
 
+def _whole_number(text: str) -> int:
+    """An integer argument, also written as a float with no fraction (``1e9``, ``2.0``)."""
+    try:
+        return int(text)
+    except ValueError:
+        pass
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"invalid whole number: {text!r}") from None
+    if not value.is_integer():  # (NaN and infinities are not integers either)
+        raise argparse.ArgumentTypeError(f"invalid whole number: {text!r}")
+    return int(value)
+
+
 class _Parser(argparse.ArgumentParser):
     """Usage mistakes end in one line, like every other error of the command line."""
 
@@ -120,13 +150,13 @@ def _main(argv) -> int:
 
     gen = commands.add_parser("generate", help="write a random scratch file for a flat UV square")
     gen.add_argument("output")
-    gen.add_argument("--count", type=int, default=3000)
+    gen.add_argument("--count", type=_whole_number, default=3000, help="scratches (1e6 is read as 1000000)")
     gen.add_argument("--seed", type=int, default=0)
     gen.add_argument("--width", default="G[4, 1.3]", help="micrometres: U[a, b], G[mean, std] or a value")
     gen.add_argument("--depth", default="G[250, 80]", help="nanometres: U[a, b], G[mean, std] or a value")
     gen.add_argument("--length-min", type=float, default=0.2, help="UV units")
     gen.add_argument("--length-max", type=float, default=0.6, help="UV units")
-    gen.add_argument("--vertices", type=int, default=8)
+    gen.add_argument("--vertices", type=_whole_number, default=8)
     gen.add_argument("--curvature", type=float, default=0.0, help="largest curvature, 1/UV units")
     gen.add_argument("--profile", choices=["rectangular", "triangular"], default="rectangular")
     gen.add_argument("--depth-variation", type=float, nargs=2, default=(1.1, 0.04), metavar=("AMP", "FREQ"))

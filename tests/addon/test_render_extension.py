@@ -58,6 +58,8 @@ scene.render.filepath = output
 bpy.ops.render.render(write_still=True)
 import mitsuba, drjit
 print("MITSUBA", mitsuba.__file__)
+disk_cache = sys.modules[engine.__module__.split(".addon")[0] + ".mitsuba_bridge.bsdf.tables.disk_cache"]
+print("CACHE", disk_cache.directory(), "IN", bpy.utils.extension_path_user(engine.__module__.split(".addon")[0]))
 print("LLVM", drjit.detail.llvm_version(), os.environ.get("DRJIT_LIBLLVM_PATH"))
 """
 
@@ -210,3 +212,6 @@ def test_linux_zip_installs_enables_and_renders_with_its_own_wheels(linux_zip, t
     assert re.search(r"^LLVM \(23, \d+, \d+\) None$", log, re.M), log
     assert "LLVM probe" not in log  # the crash probe ran in a child with the bundled wheels and rendered
     assert output.is_file() and output.stat().st_size > 100
+    # the scratch tables cache lives in the extension's user folder (Blender's convention), without the environment
+    cache, _, folder = log.split("CACHE ")[1].splitlines()[0].partition(" IN ")
+    assert cache == str(Path(folder) / "tables") and folder.startswith(str(sandbox)), log
