@@ -30,7 +30,9 @@ def export_scene(folder, *, film=(32, 24), light=(1.0, 1.0, 1.0)):
     from bridge_scenes import simple_scene
     from scratch_iridescence.mitsuba_bridge import scene as S
     from scratch_iridescence.mitsuba_bridge.folder import export
+    from scratch_iridescence.mitsuba_bridge.render.activation import activate
 
+    activate(VARIANT)  # the export writes Mitsuba transforms: whichever test runs first needs the variant
     description = simple_scene(film=S.Film(*film), lights=[S.PointLight((0, 0, 2), light)],
                                world=S.ConstantWorld((0.2, 0.2, 0.2)))
     export.export_folder(description, S.RenderSettings(spp=4), folder)

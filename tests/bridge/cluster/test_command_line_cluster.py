@@ -26,16 +26,25 @@ def _start(arguments, folder, name):
     return subprocess.Popen([DASK, *arguments], cwd=folder, stdout=log, stderr=subprocess.STDOUT)
 
 
+def _scheduler_address(address_file: Path, deadline: float) -> str:
+    """The address ``dask scheduler`` writes into its scheduler file, once the file is whole (it is written in
+    place, not renamed: it exists, empty, for a moment first)."""
+    while True:
+        try:
+            return json.loads(address_file.read_text())["address"]
+        except (OSError, ValueError, KeyError):
+            if time.time() > deadline:
+                raise
+            time.sleep(0.2)
+
+
 @pytest.fixture(scope="module")
 def scheduler(tmp_path_factory):
     folder = tmp_path_factory.mktemp("dask")
     address_file = folder / "scheduler.json"
     process = _start(["scheduler", "--scheduler-file", str(address_file), "--port", "0", "--no-dashboard",
                       "--host", "127.0.0.1"], folder, "scheduler")
-    deadline = time.time() + 60
-    while not address_file.is_file() and time.time() < deadline:
-        time.sleep(0.2)
-    address = json.loads(address_file.read_text())["address"]
+    address = _scheduler_address(address_file, deadline=time.time() + 60)
     from distributed import Client
 
     with Client(address) as client:
