@@ -36,7 +36,7 @@ from ..complexmath import Cx
 from ..window import window_integral
 from .nodes import envelope_nodes
 
-__all__ = ["along_intensity", "along_expectation", "moments", "half_range_hermite", "TAYLOR_TERMS", "MOMENTS_FROM_SIGMAS",
+__all__ = ["along_intensity", "along_expectation", "along_pair", "moments", "half_range_hermite", "TAYLOR_TERMS", "MOMENTS_FROM_SIGMAS",
            "SHORT_SIGMAS", "TAIL_ABOVE"]
 
 #: Terms of the Taylor series of the footprint's CDF difference (c_0 .. c_6).
@@ -193,18 +193,20 @@ def _interval(t0, t1, nu, sigma, nodes, variance):
         return spectrum(sum(a * _by_envelope(t0, t1, mean, variance, nu, sigma) for mean, a in zip(means, amounts)))
 
     def long_segment(t0, t1, variance, nu, means, amounts):
+        # (each expectation clamped at 0, where float32 and the truncated series may leave it below)
         def by_moments(t0, t1, variance, nu, means, amounts):
             m = moments(t1 - t0, nu, sigma)
-            return spectrum(sum(a * _by_moments(t0, t1, mean, variance, sigma, m) for mean, a in zip(means, amounts)))
+            return spectrum(sum(a * dr.maximum(_by_moments(t0, t1, mean, variance, sigma, m), 0.0)
+                                for mean, a in zip(means, amounts)))
 
         def by_half_range(t0, t1, variance, nu, means, amounts):
-            return spectrum(sum(a * _by_half_range(t0, t1, mean, variance, nu, sigma)
+            return spectrum(sum(a * dr.maximum(_by_half_range(t0, t1, mean, variance, nu, sigma), 0.0)
                                 for mean, a in zip(means, amounts)))
 
         core = dr.if_stmt((t0, t1, variance, nu, means, amounts), wide, by_moments, by_half_range,
                           label="scratch_filtered_along_core")
         tail = sum(a * _by_tails(t0, t1, mean, variance, nu, sigma) for mean, a in zip(means, amounts))
-        return spectrum(dr.select(tails, tail, dr.maximum(core, 0.0)))
+        return spectrum(dr.select(tails, tail, core))
 
     return dr.if_stmt(state, short, envelope, long_segment, label="scratch_filtered_along")
 
@@ -215,6 +217,20 @@ def along_intensity(t0, t1, nu, sigma, mean, variance):
     ``variance = 0`` gives the point value to float precision.
     """
     return _interval(t0, t1, nu, sigma, [(mean, 1.0)], variance)
+
+
+def along_pair(a, b, c, d, nu, sigma, nodes, variance):
+    """``Σ_j a_j E_τ Re[Φ_I Φ_J*]`` for two intervals I = [a, b], J = [c, d] on one line, over
+    ``nodes = [(mean_j, a_j)]``, ``τ ~ N(mean_j, variance)``.
+
+    ``Re E[Φ_I Φ_J*] = ½ (Λ[a, d] + Λ[c, b] - Λ[a, c] - Λ[b, d])``, ``Λ[x, y]`` the expectation of
+    the interval between x and y (inclusion–exclusion over the four intervals the two ends cut;
+    exact for overlapping, nested and disjoint intervals alike).
+    """
+    def between(x, y):
+        return _interval(dr.minimum(x, y), dr.maximum(x, y), nu, sigma, nodes, variance)
+
+    return 0.5 * (between(a, d) + between(c, b) - between(a, c) - between(b, d))
 
 
 def along_expectation(t0, t1, before, after, nu, sigma, nodes, variance):
@@ -234,4 +250,4 @@ def along_expectation(t0, t1, before, after, nu, sigma, nodes, variance):
     r0, r1 = t0 - before, t1 + after
     value = _interval(r0, t1, nu, sigma, nodes, variance) + _interval(t0, r1, nu, sigma, nodes, variance) \
         - _interval(r0, t0, nu, sigma, nodes, variance) - _interval(t1, r1, nu, sigma, nodes, variance)
-    return 0.5 * value
+    return 0.5 * value  # (along_pair with J = the run, its ends ordered)

@@ -1,0 +1,106 @@
+"""The footprint's expectation of ``|U|²`` piece by piece and pair by pair (docs/model.md §11).
+
+    E|U|² = |U0|² + 2 U0 Re Σ_k E[S_k] + Σ_k E|S_k|² + 2 Re Σ_{k<l} E[S_k S_l*]
+
+(U0 is real and does not depend on the window's position).  :func:`piece_terms` gives a piece's
+mean amplitude (:mod:`.mean_field`) and intensity (:mod:`.single`, its share of its straight run);
+:func:`pair_term` the interference of two pieces (:mod:`.pairs`): crossing pairs, nearly parallel
+ones, nothing for pieces of one run (their shares carry it) or pieces too far apart to share a
+window.  Units: µm, 1/µm.
+"""
+from __future__ import annotations
+
+import math
+
+import drjit as dr
+
+from ..complexmath import Cx
+from ..segment import SegmentGeometry
+from .footprint import Footprint
+from .mean_field import mean_amplitude
+from .pairs import PARALLEL_BELOW, POINT_PAIRS_BELOW, crossing_pair, crossing_point, parallel_pair, point_pair
+from .single import segment_intensity
+
+__all__ = ["piece_terms", "pair_term", "COHERENT_SIGMAS", "MIRROR_NEGLIGIBLE"]
+
+#: Pieces whose centre lines stay farther apart than this (in σ) inside the footprint do not interfere
+#: (their pair factor e^{-|d|²/4σ²} is below e^{-9}).
+COHERENT_SIGMAS = 6.0
+#: The mirror lobe's amplitude relative to its peak below which its cross term is skipped (SIMD packets).
+MIRROR_NEGLIGIBLE = 1e-6
+#: End points closer than this (µm) make two pieces consecutive (parallel.JOINED_UM).
+JOINED_UM = 1e-2
+
+
+def piece_terms(segment: SegmentGeometry, footprint: Footprint, xi_x, xi_y, k_z, sigma, lobe, coherent: bool,
+                runs=None):
+    """``(E[S_k] (complex, zero where the mirror lobe is negligible or not coherent), E|S_k|² or the run share)``."""
+    spectrum = type(xi_x)
+    intensity = segment_intensity(segment, footprint, xi_x, xi_y, k_z, sigma, coherent, runs)
+    zero = dr.zeros(spectrum)
+    if not coherent:
+        return Cx(zero, zero), intensity
+    near = dr.max(lobe) > MIRROR_NEGLIGIBLE * (2.0 * math.pi) * sigma * sigma
+
+    def mean(xi_x, xi_y, k_z):
+        s = mean_amplitude(segment, footprint, xi_x, xi_y, k_z, sigma)
+        return spectrum(s.re), spectrum(s.im)
+
+    re, im = dr.if_stmt((xi_x, xi_y, k_z), near, mean, lambda *_: (zero, zero), label="scratch_filtered_mean")
+    return Cx(re, im), intensity
+
+
+def ends(segment: SegmentGeometry):
+    """Start and end point relative to x0 (local frame)."""
+    nx, ny = -segment.dy, segment.dx
+    sx = segment.c * segment.dx + segment.a_perp * nx
+    sy = segment.c * segment.dy + segment.a_perp * ny
+    return sx, sy, sx + segment.length * segment.dx, sy + segment.length * segment.dy
+
+
+def pair_term(first: SegmentGeometry, second: SegmentGeometry, footprint: Footprint, xi_x, xi_y, k_z, sigma,
+              active=True):
+    """``2 Re E[S_1 S_2*]`` of two pieces of the footprint (zero where they do not interfere), per wavelength."""
+    spectrum = type(xi_x)
+    zero = dr.zeros(spectrum)
+    s1x, s1y, e1x, e1y = ends(first)
+    s2x, s2y, e2x, e2y = ends(second)
+    joined = ((dr.square(e1x - s2x) + dr.square(e1y - s2y) < JOINED_UM ** 2)
+              | (dr.square(e2x - s1x) + dr.square(e2y - s1y) < JOINED_UM ** 2))
+    x, y, sine = crossing_point(first, second)
+    parallel = dr.abs(sine) < PARALLEL_BELOW
+    # crossing: the crossing point inside both pieces (a cut run's crossing belongs to one of its pieces)
+    along_1 = (x * first.dx + y * first.dy - first.c) * dr.rcp(first.length)
+    along_2 = (x * second.dx + y * second.dy - second.c) * dr.rcp(second.length)
+    inside = (along_1 >= 0.0) & (along_1 < 1.0) & (along_2 >= 0.0) & (along_2 < 1.0)
+    narrow = footprint.largest_variance < (POINT_PAIRS_BELOW * sigma) ** 2
+    reach = COHERENT_SIGMAS * sigma
+    # nearly parallel: the second's centre line within reach of the first's somewhere along both
+    offset_start = (s2x - s1x) * -first.dy + (s2y - s1y) * first.dx
+    offset_end = (e2x - s1x) * -first.dy + (e2y - s1y) * first.dx
+    close = (dr.minimum(dr.abs(offset_start), dr.abs(offset_end)) < reach + 0.5 * (first.width + second.width)) \
+        | (offset_start * offset_end < 0.0)
+    crossing = mask(active) & ~joined & ~parallel & (inside | narrow)
+    beside = mask(active) & ~joined & parallel & close
+
+    def by_nodes(xi_x, xi_y, k_z):
+        return spectrum(2.0 * point_pair(first, second, footprint, xi_x, xi_y, k_z, sigma).re)
+
+    def closed_form(xi_x, xi_y, k_z):
+        return spectrum(2.0 * crossing_pair(first, second, footprint, xi_x, xi_y, k_z, sigma).re)
+
+    def crossing_term(xi_x, xi_y, k_z):
+        return dr.if_stmt((xi_x, xi_y, k_z), narrow, by_nodes, closed_form, label="scratch_filtered_crossing_pair")
+
+    term = dr.if_stmt((xi_x, xi_y, k_z), crossing, crossing_term, lambda *_: zero,
+                      label="scratch_filtered_crossing")
+    side = dr.if_stmt((xi_x, xi_y, k_z), beside,
+                      lambda xi_x, xi_y, k_z: spectrum(2.0 * parallel_pair(first, second, footprint, xi_x, xi_y, k_z,
+                                                                           sigma)),
+                      lambda *_: zero, label="scratch_filtered_parallel_pair")
+    return spectrum(dr.select(crossing, term, 0.0) + dr.select(beside, side, 0.0))
+
+
+def mask(value):
+    import mitsuba as mi
+    return mi.Bool(value) if isinstance(value, bool) else value
