@@ -32,8 +32,8 @@ import math
 import drjit as dr
 import numpy as np
 
-from ..complexmath import Cx
-from ..window import window_integral
+from ..maths.complexmath import Cx
+from ..maths.window import window_integral
 from .nodes import envelope_nodes
 
 __all__ = ["along_intensity", "along_expectation", "along_pair", "moments", "half_range_hermite", "TAYLOR_TERMS", "MOMENTS_FROM_SIGMAS",

@@ -14,8 +14,8 @@ import math
 
 import drjit as dr
 
-from ..complexmath import Cx
-from ..segment import SegmentGeometry
+from ..maths.complexmath import Cx
+from ..maths.segment import SegmentGeometry
 from .footprint import Footprint
 from .mean_field import mean_amplitude
 from .pairs import PARALLEL_BELOW, POINT_PAIRS_BELOW, crossing_pair, crossing_point, parallel_pair, point_pair

@@ -18,9 +18,9 @@ import math
 
 import drjit as dr
 
-from ..complexmath import Cx, expi
-from ..segment import SegmentGeometry, cross_section, frequencies
-from ..window import window_integral
+from ..maths.complexmath import Cx, expi
+from ..maths.segment import SegmentGeometry, cross_section, frequencies
+from ..maths.window import window_integral
 from .footprint import Footprint, projected
 
 __all__ = ["mean_amplitude"]

@@ -27,8 +27,8 @@ import math
 
 import drjit as dr
 
-from ..complexmath import Cx, expi
-from ..segment import SegmentGeometry, amplitude, cross_section, frequencies
+from ..maths.complexmath import Cx, expi
+from ..maths.segment import SegmentGeometry, amplitude, cross_section, frequencies
 from .along import along_pair
 from .footprint import Footprint, projected
 from .nodes import envelope_nodes, hermite_rule

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import drjit as dr
 
-from ..segment import SegmentGeometry, cross_section, frequencies
+from ..maths.segment import SegmentGeometry, cross_section, frequencies
 from .along import along_expectation
 from .footprint import Footprint, projected
 from .nodes import envelope_nodes
