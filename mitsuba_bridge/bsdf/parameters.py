@@ -51,3 +51,6 @@ CROSSING_ITEMS = (
                                      "V-grooves most)"),
 )
 CROSSINGS = tuple(code for code, _, _ in CROSSING_ITEMS)
+#: The footprint filter (docs/model.md §11.2): each camera sample averages the BSDF over a Gaussian of
+#: this many times its share of the pixel (pixel / √spp) as standard deviation.
+FOOTPRINT_SCALE = 0.5

@@ -30,6 +30,8 @@ COHERENT_SIGMAS = 6.0
 MIRROR_NEGLIGIBLE = 1e-6
 #: End points closer than this (µm) make two pieces consecutive (parallel.JOINED_UM).
 JOINED_UM = 1e-2
+#: Pieces this parallel whose lines lie within JOINED_UM of each other lie on one line.
+SAME_LINE_SINE = 1e-4
 
 
 def piece_terms(segment: SegmentGeometry, footprint: Footprint, xi_x, xi_y, k_z, sigma, lobe, coherent: bool,
@@ -80,8 +82,10 @@ def pair_term(first: SegmentGeometry, second: SegmentGeometry, footprint: Footpr
     offset_end = (e2x - s1x) * -first.dy + (e2y - s1y) * first.dx
     close = (dr.minimum(dr.abs(offset_start), dr.abs(offset_end)) < reach + 0.5 * (first.width + second.width)) \
         | (offset_start * offset_end < 0.0)
-    crossing = mask(active) & ~joined & ~parallel & (inside | narrow)
-    beside = mask(active) & ~joined & parallel & close
+    # pieces of one line (a run cut into pieces, a straight polyline): their interference is their shares'
+    same_line = (dr.abs(sine) < SAME_LINE_SINE) & (dr.abs(offset_start) < JOINED_UM)
+    crossing = mask(active) & ~parallel & ((inside & ~joined) | narrow)
+    beside = mask(active) & parallel & close & ~same_line
 
     def by_nodes(xi_x, xi_y, k_z):
         return spectrum(2.0 * point_pair(first, second, footprint, xi_x, xi_y, k_z, sigma).re)
