@@ -14,6 +14,7 @@ from .. import scratch
 from . import handoff, parameters, persistent, tensors
 from .fresnel import ConductorSpectra, material_textures
 from .filtered.model import FilteredModel
+from .filtered.single import NARROW_ACROSS_SIGMAS
 from .lookup import Grid
 from .model import Model
 from .tables import disk_cache, grid
@@ -300,8 +301,12 @@ def _make_class() -> type:
                           eta=self.eta, k=self.k, spectra=spectra, diffuse=self.diffuse, depth_phase=self.depth_phase,
                           height_field=self._height_field)
             if self.footprint_filter:
+                # (a Python choice: two nodes across where every groove is at most 1.2σ wide, docs/model.md §11.3)
+                widest = float(self.tables.segments[:self.tables.piece_count, 6].max(initial=0.0))
+                narrow = widest <= NARROW_ACROSS_SIGMAS * dr.slice(sigma)
                 self.model = FilteredModel(**common, footprint_angle=self.footprint_angle,
-                                           footprint_width=self.footprint_width, line_continuation=self.line_runs)
+                                           footprint_width=self.footprint_width, line_continuation=self.line_runs,
+                                           across_nodes=2 if narrow else 3)
             else:
                 self.model = Model(**common)
 

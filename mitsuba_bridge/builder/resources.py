@@ -93,6 +93,8 @@ class InMemory:
     """Resources for rendering straight from memory."""
 
     shares_materials = False  #: each material's BSDF is loaded once and handed to its shapes
+    #: ``plugin_dict`` keywords of the render's footprint filter (:func:`.camera.footprint_settings`)
+    footprint: dict = {}
 
     def __init__(self):
         self._bsdfs: dict[str, object] = {}
@@ -125,7 +127,7 @@ class InMemory:
         from ..bsdf import plugin_dict
 
         scratches = material.scratches if material.scratches.count else None  # None: unscratched metal
-        return plugin_dict(scratches, **scratch_plugin_settings(material))
+        return plugin_dict(scratches, **scratch_plugin_settings(material), **self.footprint)
 
     def shape(self, shape: Shape, bsdf: dict, emitter: dict | None, *, material_key: str):
         """An ``mi.Mesh`` in world space, filled from numpy, with its BSDF (shared per material)."""

@@ -15,17 +15,11 @@ from __future__ import annotations
 
 import math
 
-from ..bsdf.parameters import FOOTPRINT_SCALE
+from ..bsdf.parameters import FOOTPRINT_SCALE, sample_footprint
 
-__all__ = ["sample_footprint", "set_footprint", "FOOTPRINT_SCALE"]
+__all__ = ["pixel_size", "set_footprint", "footprint_keys", "footprint_values", "FOOTPRINT_SCALE"]
 
 _ANGLE, _WIDTH = "footprint_angle", "footprint_width"
-
-
-def sample_footprint(pixel_angle: float, pixel_width: float, spp_total: float) -> tuple[float, float]:
-    """``(angle, width)`` of one sample's footprint: a pixel's ``(angle, width)`` divided among ``spp_total``."""
-    scale = FOOTPRINT_SCALE / math.sqrt(max(float(spp_total), 1.0))
-    return pixel_angle * scale, pixel_width * scale
 
 
 def pixel_size(scene) -> tuple[float, float]:
@@ -45,18 +39,35 @@ def pixel_size(scene) -> tuple[float, float]:
     return 0.0, 2.0 * half_width / width
 
 
+def footprint_keys(params) -> list[str]:
+    """The ``footprint_angle`` keys of a scene's parameters (one per scratch BSDF)."""
+    return [key for key in params.keys() if key.endswith("." + _ANGLE) or key == _ANGLE]
+
+
+def footprint_values(keys, pixel: tuple[float, float], spp_total: float, *, scale: float = 1.0) -> dict:
+    """The parameters that size the footprints of ``keys``' BSDFs for a render of ``spp_total`` samples per pixel
+    of ``pixel`` (:func:`pixel_size`); ``scale``: pixels that many times larger (a preview's)."""
+    import mitsuba as mi
+
+    angle, width = sample_footprint(pixel[0] * scale, pixel[1] * scale, spp_total)
+    values = {}
+    for key in keys:
+        values[key] = mi.Float(angle)
+        values[key[:-len(_ANGLE)] + _WIDTH] = mi.Float(width)
+    return values
+
+
 def set_footprint(scene, spp_total: float, *, scale: float = 1.0) -> int:
     """Size every scratch BSDF's footprint for a render of ``spp_total`` samples per pixel (``scale``: a pixel
     ``scale`` times larger, a preview's); returns how many BSDFs were set."""
+    import drjit as dr
     import mitsuba as mi
 
-    angle, width = pixel_size(scene)
-    angle, width = sample_footprint(angle * scale, width * scale, spp_total)
     params = mi.traverse(scene)
-    keys = [key for key in params.keys() if key.endswith("." + _ANGLE) or key == _ANGLE]
-    for key in keys:
-        params[key] = angle
-        params[key[:-len(_ANGLE)] + _WIDTH] = width
+    keys = footprint_keys(params)
     if keys:
+        for key, value in footprint_values(keys, pixel_size(scene), spp_total, scale=scale).items():
+            dr.make_opaque(value)
+            params[key] = value
         params.update()
     return len(keys)

@@ -285,6 +285,8 @@ class RenderSettings:
     max_depth: int = 8
     seed: int = 0
     variant: str = "auto"
+    #: average the scratch BSDFs over each sample's share of its pixel (docs/model.md §11); off for validation
+    footprint_filter: bool = True
 
     def __post_init__(self):
         if self.spp < 1:

@@ -30,10 +30,11 @@ from __future__ import annotations
 import math
 
 import drjit as dr
+import mitsuba as mi
 import numpy as np
 
 from ..maths.complexmath import Cx
-from ..maths.window import window_integral
+from ..maths.window import end_term, window_integral
 from .nodes import envelope_nodes
 
 __all__ = ["along_intensity", "along_expectation", "along_pair", "moments", "half_range_hermite", "TAYLOR_TERMS", "MOMENTS_FROM_SIGMAS",
@@ -82,16 +83,25 @@ def half_range_hermite(count: int):
 _HALF_NODES, _HALF_WEIGHTS = half_range_hermite(HALF_RANGE_NODES)
 
 
-def moments(length, nu, sigma):
+def moments_start(nu, sigma):
+    """The end term at d = 0 of every interval's :func:`moments` (one Faddeeva evaluation, shared)."""
+    return end_term(dr.zeros(mi.Float), nu, math.sqrt(2.0) * sigma)
+
+
+def moments(length, nu, sigma, start=None):
     """``[m_0 .. m_6]`` (complex) of a segment ``length`` µm long: ``m_k = ∫_0^Y y^k e^{-y²-iby} dy``.
 
     ``Y = L/2σ``, ``b = 4πσν``; ``m_0`` is the window integral of standard deviation √2σ over
-    [0, L] divided by 2σ, the others follow from
+    [0, L] divided by 2σ (``start``: :func:`moments_start`, its end term at 0, when the caller shares it;
+    the end at L is skipped for whole SIMD packets of long intervals), the others follow from
     ``m_{k+1} = (k m_{k-1} - i b m_k + δ_k0 - Y^k e^{-Y²-ibY}) / 2`` (integration by parts), which
     multiplies m_0's error by about ``(b/2)^k``: used for ``|b| <= TAIL_ABOVE`` only.
     """
     two_sigma = 2.0 * sigma
-    m0 = window_integral(dr.zeros(type(length)), length, nu, math.sqrt(2.0) * sigma) * dr.rcp(two_sigma)
+    root2_sigma = math.sqrt(2.0) * sigma
+    if start is None:
+        start = moments_start(nu, sigma)
+    m0 = (end_term(length, nu, root2_sigma) - start) * (math.sqrt(0.5 * math.pi) * root2_sigma / two_sigma)
     y = dr.minimum(length * dr.rcp(two_sigma), 6.0)  # (e^{-36} beyond: the window integral's own clamp)
     b = (4.0 * math.pi) * sigma * nu
     s, c = dr.sincos(-b * y)
@@ -167,46 +177,93 @@ def _by_tails(t0, t1, mean, variance, nu, sigma):
     return (ends - cross) * dr.rcp(dr.maximum((4.0 * math.pi ** 2) * nu * nu, 1e-30))
 
 
+def _any_wavelength(mask):
+    """Per lane: whether any wavelength's entry of ``mask`` (a spectrum's mask) holds."""
+    result = mask[0]
+    for k in range(1, len(mask)):
+        result = result | mask[k]
+    return result
+
+
+def _pick(index, values):
+    """``values[index]`` for a per-lane (or loop) index over a Python tuple of arrays."""
+    result = values[-1]
+    for k in range(len(values) - 2, -1, -1):
+        result = dr.select(index == k, values[k], result)
+    return result
+
+
+def _loop_over_nodes(nodes, body, initial, label):
+    """``Σ_j body(mean_j, a_j)`` over ``nodes = [(mean_j, a_j)]`` as a symbolic loop (its body traced once)."""
+    means = tuple(mean for mean, _ in nodes)
+    amounts = tuple(amount for _, amount in nodes)
+    kind = type(initial)
+
+    def step(j, total):
+        return j + 1, kind(total + body(_pick(j, means), _pick(j, amounts)))
+
+    return dr.while_loop((dr.zeros(mi.UInt32), initial), lambda j, total: j < len(nodes), step, label=label)[1]
+
+
 def _by_envelope(t0, t1, mean, variance, nu, sigma):
-    """Point values at the nodes of the footprint times the envelope ``e^{-(τ - t_mid)²/σ²}``."""
-    total = 0.0
-    for tau, weight in envelope_nodes(0.5 * (t0 + t1), mean, variance, sigma * sigma, ENVELOPE_NODES):
-        total = total + weight * window_integral(t0 - tau, t1 - tau, nu, sigma).abs2()
-    return total
+    """Point values at the nodes of the footprint times the envelope ``e^{-(τ - t_mid)²/σ²}`` (a loop)."""
+    pairs = envelope_nodes(0.5 * (t0 + t1), mean, variance, sigma * sigma, ENVELOPE_NODES)
+    positions = tuple(p for p, _ in pairs)
+    weights = tuple(w for _, w in pairs)
+    kind = type(nu)
+
+    def step(e, total):
+        tau = _pick(e, positions)
+        return e + 1, kind(total + _pick(e, weights) * window_integral(t0 - tau, t1 - tau, nu, sigma).abs2())
+
+    return dr.while_loop((dr.zeros(mi.UInt32), dr.zeros(kind)), lambda e, total: e < ENVELOPE_NODES, step,
+                         label="scratch_filtered_envelope")[1]
 
 
-def _interval(t0, t1, nu, sigma, nodes, variance):
-    """``Σ_j a_j E_τ|Φ(t0 - τ, t1 - τ; ν)|²``, ``τ ~ N(mean_j, variance)``, over ``nodes = [(mean_j, a_j)]``.
+def _interval(t0, t1, nu, sigma, nodes, variance, wide_mean, start=None):
+    """``Σ_j a_j E_τ|Φ(t0 - τ, t1 - τ; ν)|²``, ``τ ~ N(mean_j, variance)``, over ``nodes = [(mean_j, a_j)]``;
+    footprints at least MOMENTS_FROM_SIGMAS σ wide take all nodes at ``wide_mean`` (the along factor barely
+    changes over the nodes' spread, of order σ, there: one evaluation instead of one per node).
 
-    The regime is chosen per lane (module docstring); the moments, which depend on the length and
-    the frequency only, are shared by the nodes.
+    The regime is chosen per lane (module docstring); every regime's body is traced once (symbolic loops
+    over the nodes), and whole SIMD packets skip the regimes none of their lanes needs.
     """
     spectrum = type(nu)
     short = t1 - t0 <= SHORT_SIGMAS * sigma
     wide = variance >= (MOMENTS_FROM_SIGMAS * sigma) ** 2
     tails = ((4.0 * math.pi) * sigma) * dr.abs(nu) > TAIL_ABOVE
-    means = tuple(mean for mean, _ in nodes)
-    amounts = tuple(spectrum(amount) for _, amount in nodes)
-    state = (t0, t1, variance, nu, means, amounts)
+    total_amount = spectrum(sum(amount for _, amount in nodes))
+    state = (t0, t1, variance, nu, wide_mean, total_amount)
 
-    def envelope(t0, t1, variance, nu, means, amounts):
-        return spectrum(sum(a * _by_envelope(t0, t1, mean, variance, nu, sigma) for mean, a in zip(means, amounts)))
+    def envelope(t0, t1, variance, nu, wide_mean, total_amount):
+        return _loop_over_nodes(nodes, lambda mean, a: a * _by_envelope(t0, t1, mean, variance, nu, sigma),
+                                dr.zeros(spectrum), "scratch_filtered_envelope_nodes")
 
-    def long_segment(t0, t1, variance, nu, means, amounts):
-        # (each expectation clamped at 0, where float32 and the truncated series may leave it below)
-        def by_moments(t0, t1, variance, nu, means, amounts):
-            m = moments(t1 - t0, nu, sigma)
-            return spectrum(sum(a * dr.maximum(_by_moments(t0, t1, mean, variance, sigma, m), 0.0)
-                                for mean, a in zip(means, amounts)))
+    def long_segment(t0, t1, variance, nu, wide_mean, total_amount):
+        def by_moments(t0, t1, variance, nu, wide_mean, total_amount):
+            value = _by_moments(t0, t1, wide_mean, variance, sigma, moments(t1 - t0, nu, sigma, start))
+            return spectrum(total_amount * dr.maximum(value, 0.0))
 
-        def by_half_range(t0, t1, variance, nu, means, amounts):
-            return spectrum(sum(a * dr.maximum(_by_half_range(t0, t1, mean, variance, nu, sigma), 0.0)
-                                for mean, a in zip(means, amounts)))
+        def by_half_range(t0, t1, variance, nu, wide_mean, total_amount):
+            # (each expectation clamped at 0, where float32 may leave it a little below)
+            return _loop_over_nodes(
+                nodes, lambda mean, a: a * dr.maximum(_by_half_range(t0, t1, mean, variance, nu, sigma), 0.0),
+                dr.zeros(spectrum), "scratch_filtered_half_range_nodes")
 
-        core = dr.if_stmt((t0, t1, variance, nu, means, amounts), wide, by_moments, by_half_range,
-                          label="scratch_filtered_along_core")
-        tail = sum(a * _by_tails(t0, t1, mean, variance, nu, sigma) for mean, a in zip(means, amounts))
-        return spectrum(dr.select(tails, tail, core))
+        def by_tails(t0, t1, variance, nu, wide_mean, total_amount):
+            return _loop_over_nodes(nodes, lambda mean, a: a * _by_tails(t0, t1, mean, variance, nu, sigma),
+                                    dr.zeros(spectrum), "scratch_filtered_tail_nodes")
+
+        def core(t0, t1, variance, nu, wide_mean, total_amount):
+            return dr.if_stmt((t0, t1, variance, nu, wide_mean, total_amount), wide, by_moments, by_half_range,
+                              label="scratch_filtered_along_core")
+
+        # (per wavelength: the tails where |b| is large; the core's regimes only in SIMD packets with a lane
+        # near some wavelength's diffraction line)
+        tail = by_tails(t0, t1, variance, nu, wide_mean, total_amount)
+        inner = dr.if_stmt((t0, t1, variance, nu, wide_mean, total_amount), _any_wavelength(~tails), core,
+                           lambda *_: dr.zeros(spectrum), label="scratch_filtered_along_lit")
+        return spectrum(dr.select(tails, tail, inner))
 
     return dr.if_stmt(state, short, envelope, long_segment, label="scratch_filtered_along")
 
@@ -214,40 +271,101 @@ def _interval(t0, t1, nu, sigma, nodes, variance):
 def along_intensity(t0, t1, nu, sigma, mean, variance):
     """``E_τ |Φ(t0 - τ, t1 - τ; ν)|²`` for ``τ ~ N(mean, variance)`` (µm, µm²), per wavelength.
 
-    ``variance = 0`` gives the point value to float precision.
+    ``variance = 0`` gives the point value (within 0.3 % of the segment's peak: the nodes' quadrature).
     """
-    return _interval(t0, t1, nu, sigma, [(mean, 1.0)], variance)
+    return _interval(t0, t1, nu, sigma, [(mean, 1.0)], variance, mean)
 
 
-def along_pair(a, b, c, d, nu, sigma, nodes, variance):
+def along_pair(a, b, c, d, nu, sigma, nodes, variance, wide_mean):
     """``Σ_j a_j E_τ Re[Φ_I Φ_J*]`` for two intervals I = [a, b], J = [c, d] on one line, over
-    ``nodes = [(mean_j, a_j)]``, ``τ ~ N(mean_j, variance)``.
+    ``nodes = [(mean_j, a_j)]``, ``τ ~ N(mean_j, variance)`` (``wide_mean``: :func:`_interval`).
 
     ``Re E[Φ_I Φ_J*] = ½ (Λ[a, d] + Λ[c, b] - Λ[a, c] - Λ[b, d])``, ``Λ[x, y]`` the expectation of
     the interval between x and y (inclusion–exclusion over the four intervals the two ends cut;
-    exact for overlapping, nested and disjoint intervals alike).
+    exact for overlapping, nested and disjoint intervals alike).  The four are one symbolic loop.
     """
-    def between(x, y):
-        return _interval(dr.minimum(x, y), dr.maximum(x, y), nu, sigma, nodes, variance)
+    spectrum = type(nu)
+    ends = ((a, d, 0.5), (c, b, 0.5), (a, c, -0.5), (b, d, -0.5))
+    lows = tuple(dr.minimum(x, y) for x, y, _ in ends)
+    highs = tuple(dr.maximum(x, y) for x, y, _ in ends)
 
-    return 0.5 * (between(a, d) + between(c, b) - between(a, c) - between(b, d))
+    start = moments_start(nu, sigma)  # (the four intervals' moments share their end term at d = 0)
+
+    def step(i, total):
+        sign = dr.select(i < 2, 0.5, -0.5)
+        value = _interval(_pick(i, lows), _pick(i, highs), nu, sigma, nodes, variance, wide_mean, start)
+        return i + 1, spectrum(total + sign * value)
+
+    return dr.while_loop((dr.zeros(mi.UInt32), dr.zeros(spectrum)), lambda i, total: i < 4, step,
+                         label="scratch_filtered_intervals")[1]
 
 
-def along_expectation(t0, t1, before, after, nu, sigma, nodes, variance):
+#: Intervals at least this long (in σ) have the moments of an infinite one (the window integral of
+#: standard deviation √2σ is clamped at 8√2σ; e^{-32} beyond).
+LONG_SIGMAS = 8.0 * math.sqrt(2.0)
+
+
+def _endpoint_terms(t, mean, variance, sigma):
+    """Per endpoint: ``(σ erf(x/√2), [2σ q^k He_{k-1}(x) φ(x) / k!], k = 1 .. 6)``, x its standardised position."""
+    inv_s = dr.rsqrt(variance + 0.5 * sigma * sigma)
+    q = sigma * inv_s
+    x = (t - mean) * inv_s
+    phi = dr.exp(-0.5 * x * x) * _INV_SQRT_2PI
+    he_prev, he, scale = 0.0, 1.0, 2.0 * sigma
+    values = []
+    for k in range(1, TAYLOR_TERMS):
+        scale = scale * q * (1.0 / k)
+        values.append(scale * he * phi)
+        he_prev, he = he, x * he - (k - 1) * he_prev
+    return sigma * dr.erf(x * _INV_SQRT_2), values
+
+
+def _wide_run_share(t0, t1, before, after, nu, sigma, mean, variance):
+    """:func:`along_pair` of a piece and its run for a wide footprint where every one of the four intervals
+    is empty or at least LONG_SIGMAS σ long: they share the moments of an infinite interval (one window
+    integral), and each of the four endpoints' Taylor terms is computed once.  (Where the run goes on past
+    both ends, the odd terms of its cut points cancel: a cut is no end, docs/model.md §11.3.)"""
+    m = moments(dr.zeros(mi.Float) + 1e30, nu, sigma)  # (clamped: the infinite interval's)
+    r0, r1 = t0 - before, t1 + after
+    e_r0, e_t0, e_t1, e_r1 = (_endpoint_terms(t, mean, variance, sigma) for t in (r0, t0, t1, r1))
+    has_before, has_after = before > 0.0, after > 0.0
+    # ½ (Λ[r0, t1] + Λ[t0, r1] - Λ[r0, t0] - Λ[t1, r1]), each Λ[lo, hi] = 2σ√π Σ_k c_k(lo, hi) Re m_k with
+    # c_0 = σ (erf_hi - erf_lo), c_k = (-1)^k E_k(lo) - E_k(hi)
+    intervals = ((e_r0, e_t1, 0.5, True), (e_t0, e_r1, 0.5, True), (e_r0, e_t0, -0.5, has_before),
+                 (e_t1, e_r1, -0.5, has_after))
+    total = 0.0
+    for lo, hi, sign, present in intervals:
+        weight = sign if present is True else dr.select(present, sign, 0.0)
+        value = (hi[0] - lo[0]) * m[0].re
+        for k in range(1, TAYLOR_TERMS):
+            parity = 1.0 if k % 2 == 0 else -1.0
+            value = dr.fma(parity * lo[1][k - 1] - hi[1][k - 1], m[k].re, value)
+        total = total + weight * value
+    return (2.0 * _SQRT_PI * sigma) * total
+
+
+def along_expectation(t0, t1, before, after, nu, sigma, nodes, variance, wide_mean):
     """``Σ_j a_j E_τ Re[Φ_piece Φ_run*]`` over ``nodes = [(mean_j, a_j)]``, ``τ ~ N(mean_j, variance)``.
 
     The piece [t0, t1] belongs to a straight run that goes on ``before`` its start and ``after`` its
     end (µm; 0 where it ends, ``None`` for both: a piece on its own, ``E|Φ_piece|²``); the shares of
-    a run's pieces add up to the run's value (docs/model.md §11.3).  By bilinearity, with the piece
-    G = [t0, t1] between B = [t0 - before, t0] and A = [t1, t1 + after],
-
-        Re E[Φ_G Φ_R*] = ½ (Λ(B ∪ G) + Λ(G ∪ A) - Λ(B) - Λ(A)),
-
-    four expectations of single intervals (exact for any lengths).
+    a run's pieces add up to the run's value (docs/model.md §11.3): :func:`along_pair` with J the run.
     """
     if before is None:
-        return _interval(t0, t1, nu, sigma, nodes, variance)
-    r0, r1 = t0 - before, t1 + after
-    value = _interval(r0, t1, nu, sigma, nodes, variance) + _interval(t0, r1, nu, sigma, nodes, variance) \
-        - _interval(r0, t0, nu, sigma, nodes, variance) - _interval(t1, r1, nu, sigma, nodes, variance)
-    return 0.5 * value  # (along_pair with J = the run, its ends ordered)
+        return _interval(t0, t1, nu, sigma, nodes, variance, wide_mean)
+    spectrum = type(nu)
+    long_enough = LONG_SIGMAS * sigma
+    fast = ((variance >= (MOMENTS_FROM_SIGMAS * sigma) ** 2) & (t1 - t0 >= long_enough)
+            & ((before == 0.0) | (before >= long_enough)) & ((after == 0.0) | (after >= long_enough))
+            & ~_any_wavelength(((4.0 * math.pi) * sigma) * dr.abs(nu) > TAIL_ABOVE))
+    total_amount = spectrum(sum(amount for _, amount in nodes))
+
+    def quick(t0, t1, before, after, nu, variance, wide_mean):
+        value = _wide_run_share(t0, t1, before, after, nu, sigma, wide_mean, variance)
+        return spectrum(total_amount * dr.maximum(value, 0.0))
+
+    def general(t0, t1, before, after, nu, variance, wide_mean):
+        return along_pair(t0, t1, t0 - before, t1 + after, nu, sigma, nodes, variance, wide_mean)
+
+    return dr.if_stmt((t0, t1, before, after, nu, variance, wide_mean), fast, quick, general,
+                      label="scratch_filtered_run_share")

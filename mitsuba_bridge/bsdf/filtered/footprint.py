@@ -36,6 +36,12 @@ class Footprint(NamedTuple):
         half_trace = 0.5 * (self.xx + self.yy)
         return half_trace + dr.sqrt(dr.square(0.5 * (self.xx - self.yy)) + self.xy * self.xy)
 
+    @property
+    def smallest_variance(self):
+        """The smaller eigenvalue of the covariance (µm²): r² for a camera sample's footprint."""
+        half_trace = 0.5 * (self.xx + self.yy)
+        return dr.maximum(half_trace - dr.sqrt(dr.square(0.5 * (self.xx - self.yy)) + self.xy * self.xy), 0.0)
+
 
 def zero_footprint(value_type):
     zero = dr.zeros(value_type)
@@ -47,7 +53,9 @@ def footprint_of(si, angle, width, micrometres_per_unit) -> Footprint:
 
     ``angle`` (radians) and ``width`` (scene units) per sample; 0 and 0 give the point (no filtering).
     """
-    radius = dr.fma(angle, dr.maximum(si.t, 0.0), width) * micrometres_per_unit
+    # (an interaction built by hand may carry t = ∞: the cone then plays no part, the width still does)
+    cone = dr.select(angle > 0.0, angle * dr.maximum(si.t, 0.0), 0.0)
+    radius = (cone + width) * micrometres_per_unit
     radius = dr.select(dr.isfinite(radius), radius, 0.0)
     wi = si.wi
     cos_i = dr.maximum(dr.abs(wi.z), 1.0 / MAX_STRETCH)

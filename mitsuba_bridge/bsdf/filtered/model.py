@@ -30,7 +30,11 @@ from ..lookup import for_each_crossing, for_each_segment, replay_pieces, segment
 from ..maths.complexmath import Cx
 from ..maths.segment import SegmentGeometry, amplitude
 from ..model import FIND, REPLAY_PIECES, WINDOW_RADIUS_SIGMAS, Model
-from .field import pair_term, piece_terms
+from ..periodic import MAX_INCOHERENT_WIDTH_SIGMAS, family_intensity, find_family
+from .families import family_energy, family_terms
+from .along import _pick
+from .field import CROSSING_PAIRS_BELOW, pair_term, piece_terms
+from .pairs import PARALLEL_BELOW
 from .footprint import Footprint, footprint_of, projected
 
 __all__ = ["FilteredModel", "POINT_BELOW_SIGMAS", "REACH_STDS", "RECENT_PIECES", "filtered_window_energy"]
@@ -67,6 +71,8 @@ class FilteredModel(Model):
     footprint_width: object = None  #: opaque mi.Float: scene units of an orthographic sample's width
     #: mi.Float, 2 per piece: how far its line runs on straight through other pieces, in its own lengths
     line_continuation: object = None
+    #: Gauss–Hermite nodes across a groove (:mod:`.single`): 2 where every groove is at most 1.2σ wide
+    across_nodes: int = 3
 
     # ------------------------------------------------------------ helpers
     def footprint(self, si) -> Footprint:
@@ -76,9 +82,45 @@ class FilteredModel(Model):
     def _is_point(self, footprint: Footprint):
         return footprint.largest_variance < (POINT_BELOW_SIGMAS * self.sigma) ** 2
 
-    def _family(self, jac, active):
-        # (the closed forms of periodic families are the point model's: its lanes only, masked by the caller)
-        return Model._family(self, jac, active)
+    def _footprint_family(self, jac, footprint: Footprint, radius, active):
+        """The periodic family whose run fills the footprint's reach (no edge, no kink: those scan), or None
+        where the model sums none (docs/model.md §11.6)."""
+        if not (self.periodic and self.grid.periodic and self.sums_families(self.coherent, self.depth_phase)):
+            return None
+        family = find_family(self.grid, jac, self.sigma, active, reach_um=radius)
+        plain = family.eligible & ~family.edge
+        if family.kink is not None:
+            plain &= ~family.kink
+        if not self.coherent:
+            plain &= family.width <= MAX_INCOHERENT_WIDTH_SIGMAS * self.sigma
+        family.eligible = plain
+        return family
+
+    def _family_start(self, family, footprint, q, wi, want_value, want_pdf):
+        """``(mean, intensity, covered, energy, density)`` a fold starts from where the lane's footprint lies in
+        a family: its closed forms (:mod:`.families`), zeros elsewhere (whole SIMD packets skip them)."""
+        zero_s, zero_f = dr.zeros(mi.Spectrum), dr.zeros(mi.Float)
+        inside = family.eligible
+        sigma = self.sigma
+
+        def terms(kz0):
+            mean = intensity = zero_s
+            covered = energy = density = zero_f
+            if want_value and self.coherent:
+                mean, intensity = family_terms(family, footprint, q.xi_x, q.xi_y, q.k_z, sigma)
+            elif want_value:
+                intensity = mi.Spectrum(family_intensity(family, q.xi_x, q.xi_y, q.k_z, sigma))
+                covered = family_energy(family, footprint, sigma)
+            if want_pdf:
+                energy = family_energy(family, footprint, sigma) \
+                    * sampling.groove_energy(family.triangular, kz0 * family.depth, self.coherent)
+                density = energy * self._scratch_density(self._family_line(family), q.xi0_x, q.xi0_y, wi, q.lam0,
+                                                         kz0)
+            return (mi.Spectrum(dr.select(inside, mean, 0.0)), mi.Spectrum(dr.select(inside, intensity, 0.0)),
+                    dr.select(inside, covered, 0.0), dr.select(inside, energy, 0.0), dr.select(inside, density, 0.0))
+
+        return dr.if_stmt((q.kz0,), inside, terms, lambda kz0: (zero_s, zero_s, zero_f, zero_f, zero_f),
+                          label="scratch_filtered_family")
 
     def _line_runs(self, segment, piece):
         ratio = dr.gather(mi.Vector2f, self.line_continuation, piece)
@@ -120,7 +162,9 @@ class FilteredModel(Model):
         coherent, sigma = self.coherent, self.sigma
         height_field = self.height_field and coherent and want_value and has_glossy
         pairing = coherent and want_value and has_glossy
-        recent = (dr.zeros(mi.UInt32), tuple(dr.zeros(mi.UInt32) for _ in range(RECENT_PIECES)))
+        # the last RECENT_PIECES pieces found: their indices and local directions (the pair loop's cheap test)
+        recent = (dr.zeros(mi.UInt32), tuple(dr.zeros(mi.UInt32) for _ in range(RECENT_PIECES)),
+                  tuple(dr.zeros(mi.Float) for _ in range(2 * RECENT_PIECES)))
         none_kept = (dr.zeros(mi.UInt32), tuple(dr.zeros(mi.UInt32) for _ in range(REPLAY_PIECES)))
         window = WINDOW_RADIUS_SIGMAS * sigma
 
@@ -131,7 +175,7 @@ class FilteredModel(Model):
                 kept = (count + 1, tuple(dr.select(count == k, piece, pieces[k]) for k in range(REPLAY_PIECES)))
             if want_value and has_glossy:
                 s, i = piece_terms(segment, footprint, q.xi_x, q.xi_y, q.k_z, sigma, q.lobe, coherent,
-                                   self._line_runs(segment, piece))
+                                   self._line_runs(segment, piece), self.across_nodes)
                 mean, intensity = mi.Spectrum(mean + s.re), mi.Spectrum(intensity + i)
                 if coherent:
                     if pairing:
@@ -148,10 +192,14 @@ class FilteredModel(Model):
             return mean, intensity, covered, energy, density, paired, point_field, kept
 
         point_field = ((q.lobe, zero_s), (zero_s, zero_s)) if height_field else ()
-        state = (zero_s, zero_s, zero_f, zero_f, zero_f, recent if pairing else (), point_field,
-                 none_kept if keep_search else ())
         scanning = searching & has_glossy
         radius = self._reach(footprint)
+        family = self._footprint_family(jac, footprint, radius, searching & has_glossy) if has_glossy else None
+        start = (zero_s, zero_s, zero_f, zero_f, zero_f)
+        if family is not None:  # lanes whose footprint lies in a periodic family: its closed form, no search
+            scanning &= ~family.eligible
+            start = self._family_start(family, footprint, q, wi, want_value, want_pdf)
+        state = (*start, recent if pairing else (), point_field, none_kept if keep_search else ())
         if found is not None:
             count, pieces = found
             replaying = scanning & (count <= REPLAY_PIECES)
@@ -174,23 +222,37 @@ class FilteredModel(Model):
                                              has_diffuse, active)
         if want_pdf:
             pdf = self._pdf(si, wo, q, energy, density, has_glossy, has_diffuse, active)
-        return value, pdf, (None, *kept) if keep_search else None
+        return value, pdf, (family, *kept) if keep_search else None
 
-    def _pairs(self, jac, footprint, q, segment, piece, intensity, seen, recent):
-        """``intensity`` plus the piece's pair terms with the last RECENT_PIECES found; the piece recorded."""
+    def _pairs(self, jac, footprint, q, segment, piece, intensity, seen, recent, directions):
+        """``intensity`` plus the piece's pair terms with the last RECENT_PIECES found; the piece recorded.
+
+        Footprints wide enough to leave crossing pairs out (:data:`.field.CROSSING_PAIRS_BELOW`) pair a
+        piece only with the nearly parallel ones, told apart by their stored directions (no gather)."""
+        crossings = footprint.smallest_variance < (CROSSING_PAIRS_BELOW * self.sigma) ** 2
+
         def step(slot, intensity):
-            other = recent[-1]
-            for k in range(len(recent) - 2, -1, -1):
-                other = dr.select(slot == k, recent[k], other)
-            first = segment_at(self.grid, jac, other, True)
-            term = pair_term(first, segment, footprint, q.xi_x, q.xi_y, q.k_z, self.sigma)
-            return slot + 1, mi.Spectrum(intensity + term)
+            other = _pick(slot, recent)
+            dx, dy = _pick(slot, directions[0::2]), _pick(slot, directions[1::2])
+            candidate = crossings | (dr.abs(dx * segment.dy - dy * segment.dx) < PARALLEL_BELOW)
+
+            def term(intensity):
+                first = segment_at(self.grid, jac, other, True)
+                return (mi.Spectrum(intensity + pair_term(first, segment, footprint, q.xi_x, q.xi_y, q.k_z,
+                                                          self.sigma, across_nodes=self.across_nodes)),)
+
+            intensity = dr.if_stmt((intensity,), candidate, term, lambda intensity: (intensity,),
+                                   label="scratch_filtered_pair")[0]
+            return slot + 1, intensity
 
         slots = dr.minimum(seen, len(recent))
         _, intensity = dr.while_loop((dr.zeros(mi.UInt32), intensity), lambda slot, _: slot < slots, step,
                                      label="scratch_filtered_pairs")
         here = seen % len(recent)
-        return intensity, (seen + 1, tuple(dr.select(here == k, piece, recent[k]) for k in range(len(recent))))
+        recent = tuple(dr.select(here == k, piece, recent[k]) for k in range(len(recent)))
+        directions = tuple(dr.select(here == k // 2, segment.dx if k % 2 == 0 else segment.dy, d)
+                           for k, d in enumerate(directions))
+        return intensity, (seen + 1, recent, directions)
 
     def _point_crossings(self, jac, q, segment, piece, point_field, window):
         """The point model's field at the shading point, (U0 + Σ S_k, Σ C): pieces and crossings in its window."""
@@ -282,22 +344,31 @@ class FilteredModel(Model):
             return energy, chosen, dr.clip(u, 0.0, 0.99999994), count + 1, kept
 
         scanning = active & has_glossy
-        state = (dr.zeros(mi.Float), dr.zeros(mi.UInt32), mi.Float(sample1), dr.zeros(mi.UInt32),
+        radius = self._reach(footprint)
+        family = self._footprint_family(jac, footprint, radius, active & has_glossy) if has_glossy else None
+        energy0 = dr.zeros(mi.Float)
+        if family is not None:  # a periodic family: its tracks' weight (they sample as one line)
+            energy0 = dr.select(family.eligible, family_energy(family, footprint, sigma)
+                                * sampling.groove_energy(family.triangular, kz0 * family.depth, self.coherent), 0.0)
+            scanning &= ~family.eligible
+        state = (energy0, dr.zeros(mi.UInt32), mi.Float(sample1), dr.zeros(mi.UInt32),
                  tuple(dr.zeros(mi.UInt32) for _ in range(REPLAY_PIECES)))
         if search is not None:  # the pieces eval_pdf found in this footprint, in its order
             _, found_count, found_pieces = search
             replaying = scanning & (found_count <= REPLAY_PIECES)
             scanning &= ~replaying
             state = replay_pieces(self.grid, jac, found_count, found_pieces, state, body, replaying)
-        energy, chosen, u, count, kept = for_each_segment(self.grid, jac, self._reach(footprint), state, body,
-                                                          scanning)
+        energy, chosen, u, count, kept = for_each_segment(self.grid, jac, radius, state, body, scanning)
 
         q_d, q_s, q_m = self._strategy_weights(si, energy, wi.z, has_glossy, has_diffuse, active)
         diffuse = active & (u < q_d)
         scratch = active & ~diffuse & (u < q_d + q_s)
 
         def scratch_line(mirror_x, mirror_y):
-            segment = segment_at(self.grid, jac, chosen, scratch)
+            segment = segment_at(self.grid, jac, chosen, scratch & ~family.eligible if family is not None else scratch)
+            if family is not None:  # its tracks' line, as the density of evaluate() has it
+                segment = SegmentGeometry(*(dr.select(family.eligible, mine, theirs)
+                                            for mine, theirs in zip(self._family_line(family), segment)))
             lo, hi = self._band(segment, wi, lam0)
             nu_par = sampling.sample_along(sample2.x, sigma)
             nu_perp = sampling.sample_across(sample2.y, segment, kz0 * segment.depth, lo, hi)

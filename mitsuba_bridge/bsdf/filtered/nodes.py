@@ -9,8 +9,6 @@ much wider than the window (``v → ∞``: nodes spread over ``ε/√2`` around 
 """
 from __future__ import annotations
 
-import math
-
 import drjit as dr
 import numpy as np
 

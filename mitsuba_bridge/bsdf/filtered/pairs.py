@@ -26,10 +26,11 @@ from __future__ import annotations
 import math
 
 import drjit as dr
+import mitsuba as mi
 
 from ..maths.complexmath import Cx, expi
 from ..maths.segment import SegmentGeometry, amplitude, cross_section, frequencies
-from .along import along_pair
+from .along import _pick, along_pair
 from .footprint import Footprint, projected
 from .nodes import envelope_nodes, hermite_rule
 
@@ -154,9 +155,20 @@ def parallel_pair(first: SegmentGeometry, second: SegmentGeometry, footprint: Fo
     conditional = dr.maximum(var_t - slope * cov_tu, 0.0)
     centre = 0.5 * (first.a_perp + offset)
     moved = second._replace(dx=first.dx, dy=first.dy)
-    nodes = []
-    for u, weight in envelope_nodes(centre, 0.0, var_u, sigma * sigma, across_nodes):
+    kind = type(nu_perp)
+    found = envelope_nodes(centre, 0.0, var_u, sigma * sigma, across_nodes)
+    positions = tuple(u for u, _ in found)
+    weights = tuple(w for _, w in found)
+
+    def step(j, *values):  # (a symbolic loop: the two cross sections are traced once)
+        u = _pick(j, positions)
         a = cross_section(first._replace(a_perp=first.a_perp - u), nu_perp, k_z * first.depth, sigma, True)
         b = cross_section(moved._replace(a_perp=offset - u), nu_perp, k_z * second.depth, sigma, True)
-        nodes.append((slope * u, weight * (a * b.conj()).re))
-    return along_pair(first.c, first.c + first.length, t0, t1, nu_par, sigma, nodes, conditional)
+        value = _pick(j, weights) * (a * b.conj()).re
+        return (j + 1,) + tuple(kind(dr.select(j == k, value, v)) for k, v in enumerate(values))
+
+    values = dr.while_loop((dr.zeros(mi.UInt32),) + tuple(dr.zeros(kind) for _ in range(across_nodes)),
+                           lambda j, *values: j < across_nodes, step, label="scratch_filtered_parallel_across")[1:]
+    nodes = [(slope * u, v) for u, v in zip(positions, values)]
+    node_mean = slope * 2.0 * var_u * centre * dr.rcp(sigma * sigma + 2.0 * var_u)
+    return along_pair(first.c, first.c + first.length, t0, t1, nu_par, sigma, nodes, conditional, node_mean)
