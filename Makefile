@@ -14,7 +14,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 PYTEST := $(PY) -m pytest
 
-.PHONY: setup llvm llvm-wheel llvm15-for-tests test test-slow test-stress demo paper extension bench clean help
+.PHONY: setup llvm llvm-wheel llvm15-for-tests test test-slow test-stress test-blender demo paper extension bench clean help
 
 help:
 	@echo "make demo       render the bundled demo scene to out/"
@@ -22,8 +22,9 @@ help:
 	@echo "make test       run the test suite (without the slow checks)"
 	@echo "make test-slow  run the slow checks only"
 	@echo "make test-stress [RUNS=20]  run 'make test' RUNS times in a row beside a CPU burner per core"
+	@echo "make test-blender  install the built zips into Blender 4.2.0, 4.2 LTS, 4.5 LTS and 5.x (pip bpy) and run the smoke set"
 	@echo "make bench      run the benchmarks in tests/bench"
-	@echo "make extension  build the extension zips (one per platform, wheels bundled) into dist/"
+	@echo "make extension  build the extension zips (one per platform and Blender Python, wheels bundled) into dist/"
 
 setup: $(STAMP) llvm llvm-wheel
 
@@ -77,6 +78,13 @@ RUNS ?= 20
 test-stress: setup
 	$(PY) tests/stress.py --runs $(RUNS)
 
+# The extension zips installed, as a user installs them, into each Blender of the version matrix (pip bpy
+# modules in out/blender-matrix/, about 1 GB each, kept for the next run) and the smoke set run in each:
+# tests/blender/matrix.py; versions and times in docs/testing.md.  Not part of CI (too long): run before
+# every release.
+test-blender: setup llvm15-for-tests
+	$(PY) tests/blender/matrix.py
+
 # Builds the demo plate in code, saves out/demo.blend and renders it through the
 # engine into out/demo.exr (linear) and out/demo.png (display-referred).
 demo: setup
@@ -91,8 +99,9 @@ paper: setup
 	@mkdir -p out/paper
 	$(PY) -m scratch_iridescence.scenes.paper --output out/paper --docs docs
 
-# Downloads the wheels named in blender_manifest.toml into wheels/ (once), builds
-# one zip per platform into dist/ and validates them with Blender's own tool.
+# Downloads the wheels named in blender_manifest.toml into wheels/ (once), builds one zip per
+# platform and Blender Python (3.11: Blender 4.2-5.0, 3.13: 5.1+) into dist/ and validates them
+# with Blender's own tool.
 extension: setup
 	$(PY) .ci/build_extension.py
 

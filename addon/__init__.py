@@ -21,6 +21,7 @@ _MODULES = (
     "mesh",
     "operators.generate",
     "operators.files",
+    "render.glints",
     "tools.paint",
     "ui.overlay",
     "ui.panels",

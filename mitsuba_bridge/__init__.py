@@ -2,8 +2,8 @@
 
 Importing this package never imports ``bpy``; Mitsuba is imported only by the
 functions that need it.  Its one side effect: where the extension bundles a
-libLLVM and the user has not set ``DRJIT_LIBLLVM_PATH``, it points Dr.Jit at the
-bundled library (see :mod:`.llvm_library`), which must happen before ``drjit``
+libLLVM and the user has not set ``DRJIT_LIBLLVM_PATH``, it has Dr.Jit load the
+bundled library (see :mod:`.device.llvm_library`; the environment stays as it was), which must happen before ``drjit``
 is first imported.
 
 Its one import name is ``scratch_iridescence.mitsuba_bridge`` (inside Blender:
@@ -33,8 +33,9 @@ def register_plugins() -> None:
     Call after ``mi.set_variant(...)``; calling again (or after switching
     variants) is harmless.
     """
-    from .bsdf import translucent
+    from .bsdf import generated, translucent
     from .bsdf import register  # Mitsuba is imported here, not at package import
 
     register()
     translucent.register()
+    generated.register()

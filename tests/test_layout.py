@@ -250,7 +250,7 @@ def test_top_level_layout_is_as_documented():
         pytest.skip("not a git checkout")
     top = {path.split("/")[0] for path in tracked}
     assert top <= {"addon", "blender_manifest.toml", "mitsuba_bridge", "scenes", "tests", "docs", "README.md",
-                   "pyproject.toml", "Makefile", ".ci", ".gitignore", "__init__.py"}, top
+                   "pyproject.toml", "Makefile", ".ci", ".gitignore", "__init__.py", "LICENSE"}, top
     assert len((ROOT / "__init__.py").read_text().strip().splitlines()) == 3
 
 

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import bpy
 
-from .frame import render_frame
+from . import backend
+from .frame import data_passes, render_frame
 
 __all__ = ["MitsubaScratchEngine", "ENGINE_ID"]
 
@@ -27,7 +28,7 @@ class MitsubaScratchEngine(bpy.types.RenderEngine):
     bl_use_shading_nodes_custom = False
     # Frames go through Blender's compositor and sequencer like any engine's.
     bl_use_postprocess = True
-    # Mitsuba renders on the CPU (LLVM) or through CUDA, never with OpenGL; the
+    # Mitsuba renders on the CPU (LLVM) or through CUDA or Metal, never with OpenGL; the
     # viewport image is drawn in view_draw, where Blender provides the context.
     bl_use_gpu_context = False
 
@@ -38,15 +39,28 @@ class MitsubaScratchEngine(bpy.types.RenderEngine):
     def __del__(self):
         # Blender frees the engine when the viewport leaves Rendered shading or closes:
         # the worker stops after its current pass (nothing waits for it here).
-        viewport = getattr(self, "viewport", None)
+        try:
+            viewport = getattr(self, "viewport", None)
+        except ReferenceError:  # Blender quitting freed the engine's data first: viewport.py's exit handler stops it
+            return
         if viewport is not None:
             viewport.stop()
 
     def render(self, depsgraph):
         render_frame(self, depsgraph)
 
+    def update_render_passes(self, scene=None, renderlayer=None):
+        # The passes the view layer asks for (Z, Denoising Data), as Cycles registers them: Blender allocates
+        # them in the render result and the compositor's Render Layers node shows them.
+        self.register_pass(scene, renderlayer, "Combined", 4, "RGBA", "COLOR")
+        for name, (channels, chan_id, kind) in data_passes(scene, renderlayer).items():
+            self.register_pass(scene, renderlayer, name, channels, chan_id, kind)
+
     def view_update(self, context, depsgraph):
         if self.viewport is None:
+            if (problem := backend.problem()) is not None:  # Mitsuba unusable here: say so in the viewport
+                self.update_stats("", problem)
+                return
             from .viewport import ViewportRender
 
             self.viewport = ViewportRender()

@@ -4,6 +4,7 @@ from __future__ import annotations
 import bpy
 from bpy.props import StringProperty
 
+from . import backend
 from .gather import GatherError, gather_scene, gather_settings
 
 __all__ = ["SCRATCH_OT_export_mitsuba"]
@@ -25,6 +26,9 @@ class SCRATCH_OT_export_mitsuba(bpy.types.Operator):
         return {"RUNNING_MODAL"}
 
     def execute(self, context):
+        if (problem := backend.problem()) is not None:
+            self.report({"ERROR"}, f"Export Mitsuba Scene: {problem}")
+            return {"CANCELLED"}
         from ...mitsuba_bridge.device import variants
         from ...mitsuba_bridge.render.activation import activate
         from ...mitsuba_bridge.folder import export as bridge_export

@@ -1,4 +1,4 @@
-"""Rendering one frame for the render engine: gather → build → progressive passes → Combined pass.
+"""Rendering one frame for the render engine: gather → build → progressive passes → Combined (and data) passes.
 
 Kept apart from the ``RenderEngine`` class so that it reads top to bottom and
 every failure ends in ``report``/``error_set`` rather than in a silent black
@@ -7,20 +7,18 @@ Mitsuba in memory.
 """
 from __future__ import annotations
 
+import dataclasses
 import traceback
 
 import bpy
 import numpy as np
 
+from ...mitsuba_bridge.render.aovs import PASSES, blender_passes  # numpy only: no Mitsuba imported here
+from . import backend
 from .gather import GatherError, gather_scene, gather_settings
 from .turns import viewports_paused
 
-__all__ = ["render_frame", "MITSUBA_MISSING", "combined_rect"]
-
-MITSUBA_MISSING = (
-    "Mitsuba is not available in Blender's Python ({error}). Install the Scratch Iridescence extension zip "
-    "built for your platform (it bundles the mitsuba, drjit and OpenEXR wheels), or install "
-    "'mitsuba==3.9.1 drjit==1.5.0' into Blender's Python, then restart Blender")
+__all__ = ["render_frame", "combined_rect", "data_passes"]
 
 #: The image in Blender refreshes at most this often (Esc is honoured after every chunk). Only the
 #: display depends on time: the chunks and so the image are fixed by samples, resolution and seed.
@@ -35,34 +33,55 @@ def combined_rect(image: np.ndarray, transparent: bool) -> np.ndarray:
     return rect
 
 
+def data_passes(scene, view_layer) -> dict:
+    """The data passes ``view_layer`` asks for: Depth with its Z pass, the denoising passes with Denoising Data."""
+    wanted = {"Depth": bool(view_layer.use_pass_z)}
+    denoising = bool(scene.scratch_iridescence.denoising_data)
+    wanted.update({"Denoising Normal": denoising, "Denoising Albedo": denoising})
+    return {name: PASSES[name] for name, on in wanted.items() if on}
+
+
+def pass_rect(image: np.ndarray) -> np.ndarray:
+    """A pass image (H, W, C), row 0 at the top, as Blender's rect (row 0 at the bottom), flat float32."""
+    return np.ascontiguousarray(image[::-1], dtype=np.float32).ravel()
+
+
 def _fail(engine, message: str) -> None:
     engine.report({"ERROR"}, message)
     engine.error_set(message)
 
 
 def _bridge():
-    """The bridge modules that need Mitsuba, or an ImportError naming what is missing."""
-    # The bridge first: importing it points Dr.Jit at a bundled libLLVM, which must precede ``import drjit``.
-    from ... import mitsuba_bridge  # noqa: F401
-    import drjit  # noqa: F401  (imported here to report a missing wheel by name)
-    import mitsuba  # noqa: F401
-
+    """The bridge modules that need Mitsuba, or :class:`.backend.BackendUnavailable` saying what to install."""
+    backend.require()  # Mitsuba, Dr.Jit and OpenEXR importable for this Blender's Python, or one message
     from ...mitsuba_bridge import builder
     from ...mitsuba_bridge.device import variants
     from ...mitsuba_bridge.render import activation, passes
     return builder, passes, variants, activation
 
 
+def _write(result, image: np.ndarray, wanted: dict, transparent: bool) -> None:
+    """The running image into the result: Combined, and the data passes of ``wanted`` (``render.aovs``)."""
+    layer = result.layers[0]
+    # foreach_set copies in bulk: assigning ``rect`` goes pixel by pixel (about 1 s for 1080p).
+    layer.passes["Combined"].rect.foreach_set(combined_rect(image[..., :4], transparent).ravel())
+    if wanted:
+        for name, pixels in blender_passes(image).items():
+            if name in wanted and name in layer.passes:
+                layer.passes[name].rect.foreach_set(pass_rect(pixels))
+
+
 def render_frame(engine, depsgraph) -> None:
     """Render the frame of ``depsgraph`` into ``engine``'s result (the body of ``RenderEngine.render``)."""
     try:
         builder, passes, variants, activation = _bridge()
-    except ImportError as error:
-        _fail(engine, MITSUBA_MISSING.format(error=error))
+    except backend.BackendUnavailable as error:
+        _fail(engine, str(error))
         return
     scene = depsgraph.scene
     try:
-        settings = gather_settings(scene)
+        wanted = data_passes(scene, depsgraph.view_layer)
+        settings = dataclasses.replace(gather_settings(scene), data_passes=bool(wanted))
         engine.update_stats("", "Mitsuba | Choosing device")
         variant = activation.activate(settings.variant)
         engine.update_stats("", "Mitsuba | Gathering scene")
@@ -92,13 +111,12 @@ def render_frame(engine, depsgraph) -> None:
         with viewports_paused(lambda: engine.update_stats("", "Mitsuba | Waiting for the viewport's pass")):
             # Persistent Data (Cycles' option, Performance panel): scratch tables kept between final renders
             mi_scene = builder.load_scene(description, settings, keep_tables=scene.render.use_persistent_data)
-            combined = result.layers[0].passes["Combined"]
+            transparent = description.film.transparent
             refresh = passes.Refresh(REFRESH_SECONDS)
             for progress in passes.render_passes(mi_scene, settings.spp, seed=settings.seed):
                 engine.update_progress(progress.fraction)
                 if refresh.due(progress):
-                    # foreach_set copies in bulk: assigning ``rect`` goes pixel by pixel (about 1 s for 1080p).
-                    combined.rect.foreach_set(combined_rect(progress.image, description.film.transparent).ravel())
+                    _write(result, progress.image, wanted, transparent)
                     engine.update_result(result)
                     status = f"Sample {progress.spp_done}/{progress.spp_total} | {progress.seconds:.1f} s"
                     engine.update_stats("", f"Mitsuba ({variant}) | {status}")
@@ -107,13 +125,13 @@ def render_frame(engine, depsgraph) -> None:
                 if not progress.finished and engine.test_break():
                     cancelled = True
                     # The image keeps every sample done so far, not only those shown at the last refresh.
-                    combined.rect.foreach_set(combined_rect(progress.image, description.film.transparent).ravel())
+                    _write(result, progress.image, wanted, transparent)
                     engine.update_result(result)
                     break
     except passes.RenderInterrupted:  # Ctrl-C in Blender's terminal: Blender's own handler heard it too
         cancelled = True
         if progress is not None:  # the samples of the chunks before the interrupted one
-            combined.rect.foreach_set(combined_rect(progress.image, description.film.transparent).ravel())
+            _write(result, progress.image, wanted, description.film.transparent)
             engine.update_result(result)
     except (passes.NotEnoughMemory, passes.ScheduleError) as error:
         _fail(engine, f"Mitsuba Scratch: {error}")

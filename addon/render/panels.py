@@ -15,7 +15,7 @@ import bpy
 from .engine import ENGINE_ID
 
 __all__ = ["SCRATCH_PT_render_sampling", "SCRATCH_PT_render_film", "SCRATCH_PT_render_device",
-           "SCRATCH_PT_render_performance", "compatible_panels"]
+           "SCRATCH_PT_render_performance", "SCRATCH_PT_view_layer_passes", "compatible_panels"]
 
 # Panels EEVEE shows whose settings mean nothing to this engine.
 _SKIP_WORDS = ("eevee", "lightprobe", "freestyle", "gpencil", "grease_pencil", "shadow_terminator", "passes",
@@ -110,8 +110,24 @@ class SCRATCH_PT_render_performance(_RenderPanel, bpy.types.Panel):
         column.prop(context.scene.render, "use_persistent_data", text="Persistent Data")
 
 
+class SCRATCH_PT_view_layer_passes(_RenderPanel, bpy.types.Panel):
+    """View Layer Properties › Passes: the data passes this engine writes (as Cycles' Data panel)."""
+
+    bl_label = "Passes"
+    bl_context = "view_layer"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        column = layout.column(heading="Data", align=True)
+        column.prop(context.view_layer, "use_pass_combined")
+        column.prop(context.view_layer, "use_pass_z")
+        column.prop(context.scene.scratch_iridescence, "denoising_data")
+
+
 _CLASSES = (SCRATCH_PT_render_sampling, SCRATCH_PT_render_film, SCRATCH_PT_render_device,
-            SCRATCH_PT_render_performance)
+            SCRATCH_PT_render_performance, SCRATCH_PT_view_layer_passes)
 _opened: list = []
 
 

@@ -15,6 +15,12 @@ def _tag_scene(settings, context):
     settings.id_data.update_tag()
 
 
+def _tag_view_layers(settings, context):
+    # A pass switched on or off changes the passes Blender allocates and the compositor's sockets.
+    for view_layer in settings.id_data.view_layers:
+        view_layer.update_render_passes()
+
+
 _FILTER_LABELS = {
     "box": ("Box", "One pixel wide box: every glint lands in exactly one pixel (best for scratches)"),
     "tent": ("Tent", "Triangle filter, two pixels wide: slightly softer"),
@@ -55,9 +61,13 @@ class SCRATCH_PG_render(bpy.types.PropertyGroup):
     variant: EnumProperty(
         name="Device",
         description="Mitsuba variant; all are spectral, which diffraction colours need",
-        items=[("auto", "Automatic", "The GPU (CUDA) when an NVIDIA GPU is available, else the CPU"),
-               ("cuda_ad_spectral", "GPU (CUDA)", "Mitsuba's cuda_ad_spectral variant (NVIDIA GPUs)"),
-               ("llvm_ad_spectral", "CPU (LLVM)", "Mitsuba's llvm_ad_spectral variant (vectorised CPU)")],
+        # Explicit numbers: files store the number, so a new item takes a new one whatever its place
+        items=[("auto", "Automatic", "The GPU (CUDA on NVIDIA, Metal on Apple silicon) when available, "
+                                     "else the CPU", 0),
+               ("cuda_ad_spectral", "GPU (CUDA)", "Mitsuba's cuda_ad_spectral variant (NVIDIA GPUs)", 1),
+               ("metal_ad_spectral", "GPU (Metal)", "Mitsuba's metal_ad_spectral variant (Apple GPUs, macOS on "
+                                                    "Apple silicon)", 3),
+               ("llvm_ad_spectral", "CPU (LLVM)", "Mitsuba's llvm_ad_spectral variant (vectorised CPU)", 2)],
         default="auto", update=_tag_scene)
     footprint_filter: BoolProperty(
         name="Footprint Filter",
@@ -68,6 +78,11 @@ class SCRATCH_PG_render(bpy.types.PropertyGroup):
     film_filter: EnumProperty(
         name="Pixel Filter", description="Reconstruction filter of the film",
         items=_FILTER_ITEMS, default="box", update=_tag_scene)
+    denoising_data: BoolProperty(
+        name="Denoising Data",
+        description="Also render the Denoising Albedo and Denoising Normal passes (as Cycles' Denoising Data) "
+                    "for the compositor's Denoise node",
+        default=False, update=_tag_view_layers)
 
 
 def register():

@@ -40,7 +40,7 @@ from ..storage import has_scratches, read_scratches, scratch_token
 from .gather import GEOMETRY_TYPES, Warnings, gather_settings, renderable_instances, scratched_metal
 from .gather.lights import gather_light
 from .gather.materials import gather_material
-from .gather.world import gather_world
+from .gather.world import gather_world, gather_world_volume
 
 __all__ = ["SyncState", "snapshot", "classify", "same", "settings_key"]
 
@@ -66,6 +66,7 @@ class SyncState:
     shape_names: tuple  #: names of the description's shapes, in order
     instanced: bool  #: some geometry comes from instancers (always rebuilt)
     warnings: list = field(default_factory=list)
+    world_volume: object = None  #: the world's Volume of the description (a change rebuilds: it is every medium)
 
 
 def same(a, b) -> bool:
@@ -139,7 +140,8 @@ def snapshot(depsgraph, description) -> SyncState:
                      objects={name: _object_state(obj) for name, obj in objects.items()},
                      lights=_gather_lights(lights, warnings), world=description.world,
                      materials=dict(description.materials),
-                     shape_names=tuple(shape.name for shape in description.shapes), instanced=instanced)
+                     shape_names=tuple(shape.name for shape in description.shapes), instanced=instanced,
+                     world_volume=description.world_volume)
 
 
 def _shapes_of(state: SyncState, name: str) -> list[str]:
@@ -193,6 +195,8 @@ def classify(depsgraph, state: SyncState) -> list[Update]:
     if world_changed:
         world = gather_world(depsgraph.scene.world, warnings)
         if (world is None) != (state.world is None):
+            return build
+        if not same(gather_world_volume(depsgraph.scene.world, warnings), state.world_volume):
             return build
         if not same(world, state.world):
             updates.append(Update(Change.WORLD, (world,)))

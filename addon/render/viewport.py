@@ -18,9 +18,15 @@ Only a real window exercises the drawing (``gpu`` raises in background mode):
 draws it inside ``bind_display_space_shader``/``unbind_display_space_shader``,
 so Blender's colour management (view transform, look, exposure) applies as
 for Cycles.
+
+A process that exits while a worker renders would tear Dr.Jit down under the
+running kernel (C++ ``std::terminate``: "terminate called without an active
+exception", the process aborts): :func:`_end_workers_at_exit` stops every worker
+and waits for its pass before the interpreter shuts down.
 """
 from __future__ import annotations
 
+import atexit
 import threading
 import time
 import traceback
@@ -31,7 +37,8 @@ import numpy as np
 from ...mitsuba_bridge.render.session import Change, Session, Update
 from ...mitsuba_bridge.scene import Film
 from . import sync
-from .frame import MITSUBA_MISSING, combined_rect
+from .backend import MITSUBA_MISSING
+from .frame import combined_rect
 from .turns import viewport_turn
 from .view import border_crop, view_camera
 
@@ -43,6 +50,27 @@ TIMING_WINDOW = 256
 #: full-resolution pass, which cannot be interrupted: while the user keeps orbiting or dragging,
 #: only quick previews are rendered (as in Cycles).
 LINGER_SECONDS = 0.05
+#: How long an exiting process waits for a worker's pass in flight (a scene build can take this long).
+EXIT_WAIT_SECONDS = 60.0
+
+#: (viewport, worker thread) of every worker alive, for :func:`_end_workers_at_exit`.
+_workers: set = set()
+_workers_lock = threading.Lock()
+
+
+def _end_workers_at_exit() -> None:
+    """Stop every viewport worker and wait for its pass in flight (``atexit``: before the interpreter and
+    then Dr.Jit's C++ state are torn down; the session's import above loaded ``drjit`` first, so this also
+    runs before any exit handler of Dr.Jit's, ``atexit`` calling them in reverse order)."""
+    with _workers_lock:
+        workers = list(_workers)
+    for viewport, _ in workers:
+        viewport.stop()
+    for _, thread in workers:
+        thread.join(EXIT_WAIT_SECONDS)
+
+
+atexit.register(_end_workers_at_exit)
 
 
 def coalesce(updates: list) -> list:
@@ -89,6 +117,8 @@ class ViewportRender:
             self._lock.notify()
         if self._thread is None:
             self._thread = threading.Thread(target=self._run, name="mitsuba-scratch-viewport", daemon=True)
+            with _workers_lock:
+                _workers.add((self, self._thread))
             self._thread.start()
 
     def view_update(self, context, depsgraph) -> None:
@@ -225,6 +255,13 @@ class ViewportRender:
 
     # ------------------------------------------------------------------ worker thread
     def _run(self) -> None:
+        try:
+            self._work()
+        finally:
+            with _workers_lock:
+                _workers.discard((self, threading.current_thread()))
+
+    def _work(self) -> None:
         session, linger, posted = None, False, None
         try:
             while True:

@@ -1,12 +1,15 @@
 """Object properties panel "Scratches" (count, summary, file buttons, render and overlay settings) and menus."""
 from __future__ import annotations
 
+import math
+
 import bpy
 
 from .. import storage
 from ..operators.files import SCRATCH_OT_clear, SCRATCH_OT_export_file, SCRATCH_OT_import_file
 from ..operators.generate import SCRATCH_OT_generate
 from ..mesh import peek, scratch_uv_layer
+from ..render.glints import SCRATCH_OT_add_glint_lighting, glint_check
 from ..geometry.units import format_length
 from .overlay import overlay_error
 
@@ -53,12 +56,29 @@ class SCRATCH_PT_scratches(_ObjectPanel, bpy.types.Panel):
             layout.label(text="No UV map: unwrap the mesh to add scratches", icon="ERROR")
         else:
             layout.label(text=f"UV map: {layer.name}", icon="GROUP_UVS")
+        draw_glint_check(layout, context, obj)
         row = layout.row(align=True)
         row.operator(SCRATCH_OT_generate.bl_idname, text="Generate...", icon="ADD")
         row.operator(SCRATCH_OT_clear.bl_idname, text="Clear", icon="TRASH")
         row = layout.row(align=True)
         row.operator(SCRATCH_OT_import_file.bl_idname, text="Import...", icon="IMPORT")
         row.operator(SCRATCH_OT_export_file.bl_idname, text="Export...", icon="EXPORT")
+
+
+def draw_glint_check(layout, context, obj) -> None:
+    """When no light of the scene can show ``obj``'s glints: say so, and offer the light that does."""
+    check = glint_check(context, obj)
+    if check is None or check.shows:
+        return
+    box = layout.box()
+    column = box.column(align=True)
+    column.label(text="No light can show these glints", icon="ERROR")
+    if check.tilt is None:
+        column.label(text="A uniform world shows none", icon="BLANK1")
+    else:
+        column.label(text=f"Best light {math.degrees(check.tilt):.0f}° off the mirror direction", icon="BLANK1")
+        column.label(text=f"(the scratches reach {math.degrees(check.reach):.0f}°)", icon="BLANK1")
+    box.operator(SCRATCH_OT_add_glint_lighting.bl_idname, icon="LIGHT_SUN")
 
 
 class SCRATCH_PT_scratch_render(_ObjectPanel, bpy.types.Panel):

@@ -129,7 +129,7 @@ crossings add their transfer functions (the paper's limitation) unless
 crossings="height_field" gives each overlap the deepest depth.  Scratches
 are UV polylines (mesh UVs required); phases are formed relative to x0, so
 float32 suffices at any object size.  Renders need an unpolarised spectral JIT
-variant (llvm_ad_spectral, cuda_ad_spectral): diffraction colours do not exist
+variant (llvm_ad_spectral, cuda_ad_spectral, metal_ad_spectral): diffraction colours do not exist
 in RGB.  Sampling: mirror lobe, scratch lines (segment drawn in proportion to
 its diffracted energy) and the diffuse base, combined with the balance
 heuristic; pdf and weights use the first (hero) wavelength.  The set's lookup
@@ -162,8 +162,9 @@ def _check_variant() -> None:
     if not mi.is_spectral or mi.is_polarized or variant.startswith("scalar"):
         raise ValueError(
             f"the active Mitsuba variant is '{variant}', but diffraction colours need an unpolarised "
-            "spectral JIT variant: call mi.set_variant('llvm_ad_spectral') (CPU) or "
-            "mi.set_variant('cuda_ad_spectral') (NVIDIA GPU) before loading the scene")
+            "spectral JIT variant: call mi.set_variant('llvm_ad_spectral') (CPU), "
+            "mi.set_variant('cuda_ad_spectral') (NVIDIA GPU) or mi.set_variant('metal_ad_spectral') (Apple GPU) "
+            "before loading the scene")
 
 
 def _read_scratches(props):

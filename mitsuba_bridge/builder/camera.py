@@ -10,7 +10,7 @@ from ..bsdf.parameters import sample_footprint
 from ..scene import Camera, Film, RenderSettings
 from .transform import FLIP_XZ, scale, to_mitsuba, translate
 
-__all__ = ["sensor_dict", "integrator_dict", "film_dict", "window_camera", "footprint_settings"]
+__all__ = ["sensor_dict", "integrator_dict", "film_dict", "window_camera", "with_data_passes", "footprint_settings"]
 
 
 def film_dict(film: Film) -> dict:
@@ -29,11 +29,12 @@ def film_dict(film: Film) -> dict:
     return result
 
 
-def sensor_dict(camera: Camera, film: Film, settings: RenderSettings) -> dict:
+def sensor_dict(camera: Camera, film: Film, settings: RenderSettings, *, medium=None) -> dict:
     """A ``perspective`` or ``orthographic`` sensor matching ``camera`` on ``film``.
 
     Mitsuba's camera frame looks along +Z with +X to the *left*; Blender's along
     −Z with +X to the right: a rotation by 180° about Y maps one onto the other.
+    ``medium``: the world's volume, in which the camera's rays start (a medium dict or object).
     """
     aspect_hw = film.height / film.width
     if camera.projection == "perspective":
@@ -65,6 +66,8 @@ def sensor_dict(camera: Camera, film: Film, settings: RenderSettings) -> dict:
         film=film_dict(film),
         sampler={"type": "independent", "sample_count": int(settings.spp), "seed": int(settings.seed)},
     )
+    if medium is not None:
+        sensor["medium"] = medium
     return sensor
 
 
@@ -120,3 +123,9 @@ def integrator_dict(settings: RenderSettings, film: Film, *, see_through_surface
     """
     return {"type": "volpath" if see_through_surfaces else "path", "max_depth": int(settings.max_depth),
             "hide_emitters": bool(film.transparent)}
+
+
+def with_data_passes(integrator: dict, camera: Camera) -> dict:
+    """``integrator`` wrapped so that it also renders Blender's data passes (``render.aovs``: Depth along
+    ``camera``'s axis, Denoising Albedo and Normal in Cycles' conventions)."""
+    return {"type": "blender_passes", "integrator": integrator, "camera_to_world": to_mitsuba(camera.to_world)}

@@ -12,8 +12,9 @@ from typing import Optional
 
 import numpy as np
 
-from ..scene import (Add, Bump, Checker, Dielectric, Diffuse, Emission, Glossy, Mask, Mix, NormalMap, Principled,
-                     ScratchedMetal, Texture, Translucent, Transparent)
+from ..scene import (Add, Bump, Checker, Dielectric, Diffuse, Emission, Glossy, Interface, Mask, Mix, NormalMap,
+                     Principled, ScratchedMetal, Texture, Translucent, Transparent, Volumetric)
+from ..scene.albedo import add_scale, albedo_bound
 from .transform import scale, to_mitsuba
 
 __all__ = ["bsdf_dict", "emitter_dict", "value_dict", "rgb", "BLACK", "add_weights", "scaled"]
@@ -31,13 +32,23 @@ def rgb(value) -> dict:
 
 
 def value_dict(value, resources, *, colour: bool):
-    """A float, an RGB triple or a texture as something a Mitsuba parameter accepts."""
+    """A float, an RGB triple or a texture as something a Mitsuba parameter accepts.
+
+    Textures in Generated coordinates read them from the mesh (the project's ``generated`` texture).
+    """
     if isinstance(value, Texture):
-        return resources.texture(value, colour=colour)
+        lookup = resources.texture(value, colour=colour)
+        if value.coordinates == "generated":
+            return {"type": "generated", "mode": "flat", "texture": lookup}
+        return lookup
     if isinstance(value, Checker):
+        color0 = value_dict(value.color2, resources, colour=colour)
+        color1 = value_dict(value.color1, resources, colour=colour)
+        if value.coordinates == "generated":
+            return {"type": "generated", "mode": "checker", "scale": float(value.scale), "color0": color0,
+                    "color1": color1}
         # Mitsuba's squares are half a UV unit wide, with color0 in the one at the origin.
-        return {"type": "checkerboard", "color0": value_dict(value.color2, resources, colour=colour),
-                "color1": value_dict(value.color1, resources, colour=colour),
+        return {"type": "checkerboard", "color0": color0, "color1": color1,
                 "to_uv": to_mitsuba(scale(value.scale / 2, value.scale / 2, 1.0))}
     if isinstance(value, (int, float)):
         return rgb((value,) * 3) if colour else float(value)
@@ -90,11 +101,17 @@ def bsdf_dict(material, resources, *, key: str) -> dict:
         return BLACK if material.bsdf is None else nested(material.bsdf)
     if isinstance(material, ScratchedMetal):
         return resources.scratch_bsdf(material, key=key)
+    if isinstance(material, Interface):
+        return {"type": "null"}
+    if isinstance(material, Volumetric):  # the volume is the shape's medium (builder.volumes)
+        return nested(material.surface)
     raise TypeError(f"unknown material type {type(material).__name__}")
 
 
 def emitter_dict(material) -> Optional[dict]:
     """The area emitter of an emissive material, or None."""
+    if isinstance(material, Volumetric):
+        material = material.surface
     if isinstance(material, Emission) and any(c > 0 for c in material.radiance):
         return {"type": "area", "radiance": rgb(material.radiance)}
     return None
@@ -129,35 +146,12 @@ def _principled(material: Principled, resources) -> dict:
 
 # ---- the Add Shader ------------------------------------------------------------------------------
 
-def _albedo_bound(material) -> np.ndarray:
-    """An upper bound per RGB channel of the fraction of light ``material`` scatters (a texture: its brightest pixel)."""
-    def bound(value):
-        if isinstance(value, Texture):
-            return np.minimum(_linear_pixels(value).reshape(-1, 3).max(axis=0), 1.0)
-        if isinstance(value, Checker):
-            return np.maximum(np.asarray(value.color1, dtype=float), np.asarray(value.color2, dtype=float))
-        return np.broadcast_to(np.asarray(value, dtype=float), (3,))
+def _brightest(texture: Texture) -> np.ndarray:
+    return _linear_pixels(texture).reshape(-1, 3).max(axis=0)
 
-    if isinstance(material, Diffuse):
-        return bound(material.reflectance)
-    if isinstance(material, (Glossy, Dielectric, Translucent)):
-        return bound(material.color)
-    if isinstance(material, Transparent):
-        return bound(material.color)
-    if isinstance(material, Principled):
-        return np.minimum(bound(material.base_color) + 0.04, 1.0)  # plus the dielectric specular (F0 ≈ 4 %)
-    if isinstance(material, Mix):
-        factor = material.factor if isinstance(material.factor, (int, float)) else None
-        first, second = _albedo_bound(material.first), _albedo_bound(material.second)
-        return np.maximum(first, second) if factor is None else (1 - factor) * first + factor * second
-    if isinstance(material, Add):
-        weight, _ = add_weights(material)
-        return weight * (_albedo_bound(material.first) + _albedo_bound(material.second))
-    if isinstance(material, (Mask, NormalMap, Bump)):
-        return _albedo_bound(material.bsdf)
-    if isinstance(material, Emission):
-        return np.zeros(3) if material.bsdf is None else _albedo_bound(material.bsdf)
-    return np.ones(3)
+
+def _albedo_bound(material) -> np.ndarray:
+    return albedo_bound(material, _brightest)
 
 
 def add_weights(material: Add) -> tuple[float, float]:
@@ -166,10 +160,9 @@ def add_weights(material: Add) -> tuple[float, float]:
     Cycles sums them, which can scatter more light than arrives (white diffuse
     + white glossy reflects 2×). Here the sum is kept (weights 1, 1) while the
     halves' brightest channels add up to at most 1, and both are scaled down
-    together to a sum of 1 otherwise.
+    together to a sum of 1 otherwise (:mod:`...scene.albedo`).
     """
-    total = float(np.max(_albedo_bound(material.first)) + np.max(_albedo_bound(material.second)))
-    weight = 1.0 if total <= 1.0 else 1.0 / total
+    weight = add_scale(material, _brightest)
     return weight, weight
 
 
@@ -204,8 +197,8 @@ def scaled(material, factor: float):
         if isinstance(value, Texture):
             return _scaled_texture(value, factor)
         if isinstance(value, Checker):
-            return Checker(tuple(c * factor for c in value.color1), tuple(c * factor for c in value.color2),
-                           value.scale)
+            return replace(value, color1=tuple(c * factor for c in value.color1),
+                           color2=tuple(c * factor for c in value.color2))
         return value
 
     if isinstance(material, Diffuse):
@@ -246,4 +239,4 @@ def _linear_pixels(texture: Texture) -> np.ndarray:
 def _scaled_texture(texture: Texture, factor: float) -> Texture:
     """``texture`` × ``factor`` as linear pixels (Mitsuba's textures have no scale of their own)."""
     return Texture(name=f"{texture.name}*{factor:.6g}", pixels=_linear_pixels(texture) * np.float32(factor),
-                   srgb=False, interpolation=texture.interpolation)
+                   srgb=False, interpolation=texture.interpolation, coordinates=texture.coordinates)

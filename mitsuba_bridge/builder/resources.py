@@ -11,7 +11,7 @@ for the heavy parts:
   or written as EXR, scratch sets as format-v1 files; the dict references them by
   paths relative to the folder.
 
-Both have the same methods (``texture``, ``environment``, ``scratch_bsdf``, ``shape``,
+Both have the same methods (``texture``, ``environment``, ``scratch_bsdf``, ``medium``, ``shape``,
 ``instanced_shape``) and say with ``shares_materials`` whether materials are top-level
 entries that shapes reference (a folder's XML) or objects loaded once per material (memory).
 """
@@ -21,13 +21,15 @@ import re
 
 import numpy as np
 
+from ..bsdf.generated import ATTRIBUTE as GENERATED_ATTRIBUTE
 from ..bsdf.tables.references import aligned_array
 from ..scene.colour import srgb_to_linear
 from ..scene import MeshData, ScratchedMetal, Shape, Texture
 from .transform import to_mitsuba
 
 __all__ = ["InMemory", "world_geometry", "safe_name", "mesh_buffer", "bitmap_options", "scratch_plugin_settings",
-           "load_dict"]
+           "load_dict", "GENERATED_ATTRIBUTE"]
+
 
 # Image rows run top-down, Blender's v runs bottom-up: look textures up at (u, 1 - v).
 _FLIP_V = np.array([[1.0, 0, 0, 0], [0, -1.0, 0, 1.0], [0, 0, 1.0, 0], [0, 0, 0, 1.0]])
@@ -99,6 +101,7 @@ class InMemory:
     def __init__(self):
         self._bsdfs: dict[str, object] = {}
         self._textures: dict[tuple[str, bool], dict] = {}
+        self._media: dict[str, object] = {}
 
     def texture(self, texture: Texture, *, colour: bool) -> dict:
         import mitsuba as mi
@@ -129,16 +132,23 @@ class InMemory:
         scratches = material.scratches if material.scratches.count else None  # None: unscratched metal
         return plugin_dict(scratches, **scratch_plugin_settings(material), **self.footprint)
 
-    def shape(self, shape: Shape, bsdf: dict, emitter: dict | None, *, material_key: str):
-        """An ``mi.Mesh`` in world space, filled from numpy, with its BSDF (shared per material)."""
+    def medium(self, key: str, medium: dict):
+        """The medium ``medium`` loaded once per ``key`` (the camera and every shape in it share the object)."""
+        if key not in self._media:
+            self._media[key] = load_dict(medium)
+        return self._media[key]
+
+    def shape(self, shape: Shape, bsdf: dict, emitter: dict | None, *, material_key: str, media: dict | None = None):
+        """An ``mi.Mesh`` in world space, filled from numpy, with its BSDF (shared per material) and the
+        ``interior``/``exterior`` media of ``media`` (objects from :meth:`medium`)."""
         positions, faces, normals = world_geometry(shape)
-        return self._mesh(shape.name, positions, faces, normals, shape.mesh.uvs, bsdf, emitter, material_key)
+        return self._mesh(shape.name, positions, faces, normals, shape.mesh, bsdf, emitter, material_key, media)
 
-    def instanced_shape(self, mesh: MeshData, bsdf: dict, *, material_key: str):
+    def instanced_shape(self, mesh: MeshData, bsdf: dict, *, material_key: str, media: dict | None = None):
         """An ``mi.Mesh`` in object space for a ``shapegroup`` (its instances place it)."""
-        return self._mesh(mesh.name, mesh.positions, mesh.faces, mesh.normals, mesh.uvs, bsdf, None, material_key)
+        return self._mesh(mesh.name, mesh.positions, mesh.faces, mesh.normals, mesh, bsdf, None, material_key, media)
 
-    def _mesh(self, name, positions, faces, normals, uvs, bsdf, emitter, material_key):
+    def _mesh(self, name, positions, faces, normals, mesh: MeshData, bsdf, emitter, material_key, media):
         import mitsuba as mi
 
         if material_key not in self._bsdfs:
@@ -147,8 +157,13 @@ class InMemory:
         props["bsdf"] = self._bsdfs[material_key]
         if emitter is not None:
             props["emitter"] = load_dict(emitter)
+        for side, medium in (media or {}).items():
+            props[side] = medium
+        uvs = mesh.uvs
         result = mi.Mesh(name, len(positions), len(faces), props=props,
                          has_vertex_normals=normals is not None, has_vertex_texcoords=uvs is not None)
+        if mesh.generated is not None:  # Blender's Generated coordinates, read by the ``generated`` texture
+            result.add_attribute(GENERATED_ATTRIBUTE, 3, mesh_buffer(mi.Float, mesh.generated))
         params = mi.traverse(result)
         params["vertex_positions"] = mesh_buffer(mi.Float, positions)
         params["faces"] = mesh_buffer(mi.UInt32, faces, np.uint32)

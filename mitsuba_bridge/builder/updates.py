@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..scene import Camera, Film, RenderSettings, ScratchedMetal, Shape
+from ..scene import Camera, Film, RenderSettings, ScratchedMetal, Shape, Volumetric
 from .camera import sensor_dict
 from .lights import light_dict, world_dict
 from .materials import bsdf_dict
@@ -105,6 +105,11 @@ def material_values(params, prefix: str, old, new, key: str) -> dict | None:
     the BSDF (:func:`...bsdf.update_scratches`)."""
     from ..bsdf import plugin_dict, tensors
 
+    if isinstance(new, Volumetric) or isinstance(old, Volumetric):
+        # A medium is the shapes' interior, not a BSDF parameter: only the surface changes in place.
+        if not (isinstance(new, Volumetric) and isinstance(old, Volumetric)) or new.volume != old.volume:
+            return None
+        return material_values(params, prefix, old.surface, new.surface, key)
     if isinstance(new, ScratchedMetal) and isinstance(old, ScratchedMetal):
         same_kind = (new.coherent == old.coherent
                      and (new.crossings, new.depth_phase) == (old.crossings, old.depth_phase)

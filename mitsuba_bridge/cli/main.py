@@ -141,7 +141,8 @@ def _main(argv) -> int:
     render.add_argument("--chunk", metavar="K/N", help="render only part K of N of the sample schedule into an "
                                                        "EXR part file; combine all N with 'merge'")
     render.add_argument("--variant", default="auto",
-                        help="Mitsuba variant (default auto: cuda_ad_spectral when available, else llvm_ad_spectral)")
+                        help="Mitsuba variant (default auto: cuda_ad_spectral, else metal_ad_spectral when available, "
+                             "else llvm_ad_spectral)")
     render.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
     render.set_defaults(run=batch.render_command)
 

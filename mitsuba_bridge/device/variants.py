@@ -1,8 +1,12 @@
-"""Which Mitsuba variant renders: spectral always (diffraction colours need wavelengths), CUDA when present.
+"""Which Mitsuba variant renders: spectral always (diffraction colours need wavelengths), a GPU when present.
 
-The CPU variant is chosen only after :func:`mitsuba_bridge.device.llvm_library.llvm_problem`
-found a usable libLLVM: with an old one the first compiled kernel aborts the
-whole process (Blender included), so it is refused here, before any kernel.
+``"auto"`` takes CUDA (NVIDIA), then Metal (Apple GPUs: Mitsuba's macOS arm64
+wheels ship ``metal_ad_spectral``; not run on Apple hardware by this project,
+docs/rendering.md), then the CPU (LLVM).  The CPU variant is chosen only after
+:func:`mitsuba_bridge.device.llvm_library.llvm_problem` found a usable libLLVM:
+with an old one the first compiled kernel aborts the whole process (Blender
+included), so it is refused here, before any kernel.  The GPU variants need no
+LLVM.
 """
 from __future__ import annotations
 
@@ -12,14 +16,21 @@ from ..errors import ScratchUserError
 __all__ = ["SPECTRAL_VARIANTS", "VariantError", "choose_variant", "set_variant", "on_gpu"]
 
 #: In order of preference for ``"auto"``.
-SPECTRAL_VARIANTS = ("cuda_ad_spectral", "llvm_ad_spectral")
+SPECTRAL_VARIANTS = ("cuda_ad_spectral", "metal_ad_spectral", "llvm_ad_spectral")
+#: The Dr.Jit backend each variant prefix runs on (by name: ``dr.JitBackend`` is imported lazily).
+_BACKENDS = {"cuda": "CUDA", "metal": "Metal", "llvm": "LLVM"}
+
+
+def is_gpu_variant(variant: str) -> bool:
+    """Whether ``variant`` renders on a GPU (CUDA or Metal): warps of 32 lanes, no CPU threads' blocks."""
+    return variant.startswith(("cuda", "metal"))
 
 
 def on_gpu() -> bool:
-    """Whether the active Mitsuba variant renders on an NVIDIA GPU (CUDA) rather than the CPU."""
+    """Whether the active Mitsuba variant renders on a GPU (CUDA or Metal) rather than the CPU."""
     import mitsuba as mi
 
-    return mi.variant().startswith("cuda")
+    return is_gpu_variant(mi.variant() or "")
 
 
 class VariantError(ScratchUserError, RuntimeError):
@@ -29,15 +40,15 @@ class VariantError(ScratchUserError, RuntimeError):
 def choose_variant(requested: str = "auto") -> str:
     """The Mitsuba variant to use for ``requested`` (``"auto"`` or a variant name).
 
-    ``"auto"`` takes CUDA when Dr.Jit finds a CUDA device, else LLVM (CPU) when
-    its libLLVM is usable.  Raises :class:`VariantError` with a fix when neither
-    works; compiles no kernel.
+    ``"auto"`` takes CUDA when Dr.Jit finds a CUDA device, else Metal when this
+    Mitsuba build has the Metal variants and Dr.Jit finds a Metal device, else
+    LLVM (CPU) when its libLLVM is usable.  Raises :class:`VariantError` with a
+    fix when none works; compiles no kernel.
     """
     import drjit as dr
     import mitsuba as mi
 
     available = set(mi.variants())
-    backends = {"cuda_ad_spectral": dr.JitBackend.CUDA, "llvm_ad_spectral": dr.JitBackend.LLVM}
     if requested != "auto":
         if requested not in available:
             raise VariantError(f"Mitsuba variant '{requested}' is not part of this Mitsuba build "
@@ -45,18 +56,27 @@ def choose_variant(requested: str = "auto") -> str:
         if "spectral" not in requested:
             raise VariantError(f"variant '{requested}' is not spectral: diffraction colours need a "
                                f"spectral variant such as {' or '.join(SPECTRAL_VARIANTS)}")
-        backend = backends.get(requested)
+        backend = _backend(requested)
         if backend is not None and not dr.has_backend(backend):
             raise VariantError(_missing_backend_message(requested))
         if backend == dr.JitBackend.LLVM and (problem := _llvm_problem()):
             raise VariantError(problem)
         return requested
     for variant in SPECTRAL_VARIANTS:
-        if variant in available and dr.has_backend(backends[variant]):
-            if backends[variant] == dr.JitBackend.LLVM and (problem := _llvm_problem()):
+        backend = _backend(variant)
+        if variant in available and backend is not None and dr.has_backend(backend):
+            if backend == dr.JitBackend.LLVM and (problem := _llvm_problem()):
                 raise VariantError(problem)
             return variant
     raise VariantError(_missing_backend_message("llvm_ad_spectral"))
+
+
+def _backend(variant: str):
+    """The ``dr.JitBackend`` a variant runs on, or None (scalar variants; a Dr.Jit without that backend)."""
+    import drjit as dr
+
+    name = _BACKENDS.get(variant.split("_")[0])
+    return getattr(dr.JitBackend, name, None) if name else None
 
 
 def _llvm_problem() -> str | None:
@@ -67,6 +87,9 @@ def _llvm_problem() -> str | None:
 def _missing_backend_message(variant: str) -> str:
     if variant.startswith("cuda"):
         return (f"Mitsuba variant '{variant}' needs an NVIDIA GPU with a CUDA driver; none was found. "
+                "Choose 'Automatic' or the CPU (LLVM) variant")
+    if variant.startswith("metal"):
+        return (f"Mitsuba variant '{variant}' needs an Apple GPU (macOS on Apple silicon); none was found. "
                 "Choose 'Automatic' or the CPU (LLVM) variant")
     return llvm_library.llvm_problem() or "Mitsuba's CPU backend is unavailable"
 

@@ -22,10 +22,27 @@ __all__ = ["write_atomically", "replacing_file", "replacing_folder", "umask_mode
 
 
 def umask_mode(base: int = 0o666) -> int:
-    """``base`` less the process's umask (what ``open()`` would give a new file)."""
-    mask = os.umask(0)
-    os.umask(mask)
-    return base & ~mask
+    """``base`` less the process's umask (what ``open()`` would give a new file); the umask is only read."""
+    return base & ~_current_umask()
+
+
+def _current_umask() -> int:
+    """The process's umask, read without setting it (``os.umask`` sets it: racy with other threads).
+
+    Linux reports it in ``/proc/self/status``; elsewhere the kernel applies it to a probe file created
+    with mode 0o777 in a private temporary folder, and the mode that file got says what it is.
+    """
+    try:
+        with open("/proc/self/status", encoding="ascii") as status:
+            for line in status:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError):
+        pass
+    with tempfile.TemporaryDirectory(prefix=".umask-") as folder:
+        probe = os.path.join(folder, "probe")
+        os.close(os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o777))
+        return 0o777 & ~stat.S_IMODE(os.stat(probe).st_mode)
 
 
 def _real_target(path: Path) -> Path:

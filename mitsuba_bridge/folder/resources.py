@@ -70,21 +70,26 @@ class ToFolder:
         scratch_io.save(material.scratches, self.folder / relative)
         return plugin_dict(filename=relative, **scratch_plugin_settings(material), **self.footprint)
 
-    def shape(self, shape: Shape, bsdf: dict, emitter: dict | None, *, material_key: str) -> dict:
+    def medium(self, key: str, medium: dict) -> dict:
+        """The medium, written where it is used (the XML repeats it; every copy is the same medium)."""
+        return medium
+
+    def shape(self, shape: Shape, bsdf: dict, emitter: dict | None, *, material_key: str,
+              media: dict | None = None) -> dict:
         """A ``ply`` shape: the mesh file is written once and shared by its instances."""
         result = {"type": "ply", "filename": self._ply(shape.mesh), "to_world": to_mitsuba(shape.to_world),
-                  "bsdf": bsdf}
+                  "bsdf": bsdf, **(media or {})}
         if emitter is not None:
             result["emitter"] = emitter
         return result
 
-    def instanced_shape(self, mesh: MeshData, bsdf: dict, *, material_key: str) -> dict:
+    def instanced_shape(self, mesh: MeshData, bsdf: dict, *, material_key: str, media: dict | None = None) -> dict:
         """A ``ply`` shape in object space for a ``shapegroup``."""
-        return {"type": "ply", "filename": self._ply(mesh), "bsdf": bsdf}
+        return {"type": "ply", "filename": self._ply(mesh), "bsdf": bsdf, **(media or {})}
 
     def _ply(self, mesh: MeshData) -> str:
         if id(mesh) not in self._meshes:
             relative = self._unique("meshes", mesh.name, ".ply")
-            write_ply(self.folder / relative, mesh.positions, mesh.faces, mesh.normals, mesh.uvs)
+            write_ply(self.folder / relative, mesh.positions, mesh.faces, mesh.normals, mesh.uvs, mesh.generated)
             self._meshes[id(mesh)] = relative
         return self._meshes[id(mesh)]

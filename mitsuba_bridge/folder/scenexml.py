@@ -18,7 +18,7 @@ __all__ = ["dict_to_xml", "write_xml", "PLUGIN_TAGS"]
 #: Plugin type → XML element.
 PLUGIN_TAGS = {
     "scene": "scene",
-    **dict.fromkeys(("path", "direct", "volpath", "aov"), "integrator"),
+    **dict.fromkeys(("path", "direct", "volpath", "aov", "blender_passes"), "integrator"),
     **dict.fromkeys(("perspective", "orthographic", "thinlens"), "sensor"),
     "hdrfilm": "film", "specfilm": "film",
     **dict.fromkeys(("box", "tent", "gaussian", "mitchell", "catmullrom", "lanczos"), "rfilter"),
@@ -30,7 +30,9 @@ PLUGIN_TAGS = {
                      "null", "normalmap", "bumpmap", "translucent",
                      "scratch_diffraction"), "bsdf"),
     **dict.fromkeys(("area", "point", "spot", "directional", "constant", "envmap", "sunsky"), "emitter"),
-    **dict.fromkeys(("bitmap", "checkerboard"), "texture"),
+    **dict.fromkeys(("bitmap", "checkerboard", "generated"), "texture"),
+    "homogeneous": "medium",
+    **dict.fromkeys(("hg", "isotropic"), "phase"),
 }
 
 _POINTS = {"position", "center", "origin", "target"}

@@ -1,7 +1,7 @@
 """Mitsuba set up for the project's renders: the variant, the project's plugins, the frozen passes.
 
 Every render, export and session starts here (:func:`activate`), so that each runs with the same
-set-up: the spectral variant :mod:`..device.variants` chooses (CUDA when present, else LLVM after
+set-up: the spectral variant :mod:`..device.variants` chooses (CUDA or Metal when present, else LLVM after
 its libLLVM passed the crash check), the CPU kernels' target, the project's plugins registered for
 that variant, and the global tables frozen render passes take (:func:`.freezing.calibrate`).
 """
@@ -22,8 +22,10 @@ def activate(requested: str = "auto") -> str:
     when that costs a tiny kernel.  Calling again is cheap.
     """
     from .. import register_plugins
+    from . import aovs
 
     variant = set_variant(requested)
     register_plugins()
+    aovs.register()  # Blender's data passes (F12's Depth and denoising passes)
     calibrate()
     return variant

@@ -125,7 +125,7 @@ def render_chunks(scene, chunks: Iterable[Chunk], spp_total: int, *, freeze: boo
     same image bit for bit, without tracing the integrator and the Python BSDF
     again for every chunk); a scene that cannot be recorded renders traced, and
     every later :attr:`Progress.traced_because` says why.  ``overlap`` (default: on a
-    CUDA variant) launches the next chunk as soon as this one's image is on the host, so the
+    GPU variant: CUDA or Metal) launches the next chunk as soon as this one's image is on the host, so the
     GPU renders while the host adds the image to the sums and the caller shows it; the
     same images bit for bit (the launch only moves earlier).  Off on the CPU, where both
     would share the same cores.
@@ -188,7 +188,7 @@ def _finish(values) -> None:
 class RenderPlan:
     """What a render of a loaded scene will do: its film, its whole sample schedule and the chunks run here.
 
-    ``chunks`` is :func:`sample_schedule` ``(spp, pixels, seed)`` (its GPU schedule on a CUDA variant);
+    ``chunks`` is :func:`sample_schedule` ``(spp, pixels, seed)`` (its GPU schedule on a GPU variant, CUDA or Metal);
     ``selected`` is all of it, or one part of a render split over machines (:meth:`part`), whose sums
     ``merge`` combines bit for bit.
     """

@@ -112,7 +112,7 @@ def chunk_spp(pixels: int, *, gpu: bool = False) -> int:
     The largest power of two ``s ≤ 16 384`` with ``pixels × s ≤ MAX_SAMPLES_PER_PASS``;
     when that call would still hold no more than :data:`_LARGE_CALL_SAMPLES`
     samples (films under 129 pixels), :data:`SMALL_CHUNK_SPP`.  ``gpu``: at most
-    :data:`GPU_CHUNK_SPP` instead (a pixel in one warp; CUDA has no CPU threads' blocks).
+    :data:`GPU_CHUNK_SPP` instead (a pixel in one 32-lane warp or SIMD group; a GPU has no CPU threads' blocks).
     """
     budget = max(1, MAX_SAMPLES_PER_PASS // max(int(pixels), 1))
     full = min(1 << (budget.bit_length() - 1), _BLOCK_SAMPLES)
@@ -135,7 +135,7 @@ def sample_schedule(spp: int, pixels: int, seed: int = 0, *, gpu: bool = False) 
     seed : int
         The user's seed; each chunk gets its own seed derived from it.
     gpu : bool
-        The schedule of a GPU (CUDA) render: full chunks of at most
+        The schedule of a GPU (CUDA or Metal) render: full chunks of at most
         :data:`GPU_CHUNK_SPP` spp (:func:`chunk_spp`).
 
     Returns

@@ -187,16 +187,18 @@ class Session:
         self.description = description
         # One Mitsuba shape per described shape (no shapegroups): transforms are updated per shape name.
         scene_dict = builder.scene_dict(description, self.settings, instancing=False)
+        medium = scene_dict[updates.SENSOR].get("medium")  # the world's volume: every sensor starts in it
         if self.start_divisor > 1:
             preview = _preview_film(description.film, self.start_divisor)
-            scene_dict[updates.PREVIEW_SENSOR] = builder.sensor_dict(description.camera, preview, self.settings)
+            scene_dict[updates.PREVIEW_SENSOR] = builder.sensor_dict(description.camera, preview, self.settings,
+                                                                     medium=medium)
         strip_pixels = self._strip_pixels
         if strip_pixels is None:
             strip_pixels = 0 if on_gpu() else CPU_STRIP_PIXELS
         self._windows = strip_windows(description.film, strip_pixels)
         if len(self._windows) > 1:
             camera, film = builder.window_camera(description.camera, description.film, self._windows[0])
-            scene_dict[updates.STRIP_SENSOR] = builder.sensor_dict(camera, film, self.settings)
+            scene_dict[updates.STRIP_SENSOR] = builder.sensor_dict(camera, film, self.settings, medium=medium)
         self._keys = updates.SceneKeys.of(scene_dict)
         self._scene = builder.load_dict(scene_dict)
         self._params = mi.traverse(self._scene)

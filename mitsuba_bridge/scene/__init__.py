@@ -11,12 +11,12 @@ from __future__ import annotations
 from .description import (FILTERS, AreaLight, Camera, ConstantWorld, EnvironmentWorld, Film, Light, MeshData,
                           PointLight, RenderSettings, SceneDescription, Shape, SkyWorld, SpotLight, SunLight, World,
                           orthonormal)
-from .materials import (RGB, Add, Bump, Checker, Dielectric, Diffuse, Emission, Glossy, Mask, Material, Mix,
-                        NormalMap, Principled, ScratchedMetal, Texture, Translucent, Transparent, Value,
-                        walk_materials)
+from .materials import (RGB, TEXTURE_COORDINATES, Add, Bump, Checker, Dielectric, Diffuse, Emission, Glossy,
+                        Interface, Mask, Material, Mix, NormalMap, Principled, ScratchedMetal, Texture, Translucent,
+                        Transparent, Value, Volume, Volumetric, walk_materials)
 
 __all__ = ["FILTERS", "AreaLight", "Camera", "ConstantWorld", "EnvironmentWorld", "Film", "Light", "MeshData",
            "PointLight", "RenderSettings", "SceneDescription", "Shape", "SkyWorld", "SpotLight", "SunLight", "World",
            "orthonormal", "RGB", "Add", "Bump", "Checker", "Dielectric", "Diffuse", "Emission", "Glossy", "Mask",
            "Material", "Mix", "NormalMap", "Principled", "ScratchedMetal", "Texture", "Translucent", "Transparent",
-           "Value", "walk_materials"]
+           "Value", "walk_materials", "Interface", "Volume", "Volumetric", "TEXTURE_COORDINATES"]

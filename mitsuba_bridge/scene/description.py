@@ -32,7 +32,7 @@ from typing import Optional, Union
 
 import numpy as np
 
-from .materials import RGB, Texture
+from .materials import RGB, Texture, Volume
 
 __all__ = ["Film", "Camera", "MeshData", "Shape", "PointLight", "SpotLight", "SunLight", "AreaLight", "Light",
            "ConstantWorld", "EnvironmentWorld", "SkyWorld", "World", "RenderSettings", "SceneDescription",
@@ -140,7 +140,9 @@ class MeshData:
 
     ``positions`` (N, 3) float32, ``faces`` (M, 3) uint32, optional per-vertex
     ``normals`` (N, 3) float32 (None: flat shading) and ``uvs`` (N, 2) float32.
-    Several shapes (instances) may share one MeshData.
+    ``generated`` (N, 3) float32 are Blender's Generated texture coordinates (the
+    mesh's texture space mapped to [0, 1]³), given when a material looks textures
+    up there. Several shapes (instances) may share one MeshData.
     """
 
     name: str
@@ -148,6 +150,7 @@ class MeshData:
     faces: np.ndarray
     normals: Optional[np.ndarray] = None
     uvs: Optional[np.ndarray] = None
+    generated: Optional[np.ndarray] = None
 
     def __post_init__(self):
         n = len(self.positions)
@@ -159,6 +162,8 @@ class MeshData:
             raise ValueError(f"mesh {self.name!r}: normals must be (N, 3)")
         if self.uvs is not None and self.uvs.shape != (n, 2):
             raise ValueError(f"mesh {self.name!r}: uvs must be (N, 2)")
+        if self.generated is not None and self.generated.shape != (n, 3):
+            raise ValueError(f"mesh {self.name!r}: generated coordinates must be (N, 3)")
         if len(self.faces) and int(self.faces.max()) >= n:
             raise ValueError(f"mesh {self.name!r}: face index out of range")
 
@@ -287,6 +292,8 @@ class RenderSettings:
     variant: str = "auto"
     #: average the scratch BSDFs over each sample's share of its pixel (docs/model.md §11); off for validation
     footprint_filter: bool = True
+    #: also render Blender's data passes (Depth, Denoising Albedo and Normal; F12 when the view layer asks)
+    data_passes: bool = False
 
     def __post_init__(self):
         if self.spp < 1:
@@ -297,7 +304,11 @@ class RenderSettings:
 
 @dataclass(frozen=True, eq=False)
 class SceneDescription:
-    """Everything the builder needs, plus the warnings met while gathering it."""
+    """Everything the builder needs, plus the warnings met while gathering it.
+
+    ``world_volume`` fills all space outside the closed meshes that carry a volume of their own (Blender's
+    world Volume output): the camera, the lights and every surface sit in it.
+    """
 
     film: Film
     camera: Camera
@@ -306,6 +317,7 @@ class SceneDescription:
     lights: tuple = ()
     world: Optional[World] = None
     warnings: tuple[str, ...] = ()
+    world_volume: Optional[Volume] = None
 
     def __post_init__(self):
         for shape in self.shapes:

@@ -24,8 +24,9 @@ def finite_mesh(mesh: MeshData) -> tuple[MeshData, int, bool]:
     The same ``mesh`` object comes back when everything is finite (no copy).
     """
     bad_vertex = ~np.isfinite(mesh.positions).all(axis=1)
-    if mesh.uvs is not None:
-        bad_vertex |= ~np.isfinite(mesh.uvs).all(axis=1)
+    for coordinates in (mesh.uvs, mesh.generated):
+        if coordinates is not None:
+            bad_vertex |= ~np.isfinite(coordinates).all(axis=1)
     bad_normals = mesh.normals is not None and not np.isfinite(mesh.normals).all()
     if not bad_vertex.any() and not bad_normals:
         return mesh, 0, False

@@ -5,7 +5,9 @@ What ``addon.render.gather.materials`` reads from node trees and ``mitsuba_bridg
 turns into Mitsuba plugins: plain frozen dataclasses, as the rest of the description (conventions in
 :mod:`.description`).  Principled, Diffuse, Glossy, Emission; glass and refraction, translucent and
 transparent surfaces, the Mix and Add Shader nodes, alpha, normal and bump maps; image and checker
-textures; and :class:`ScratchedMetal`, the ``scratch_diffraction`` BSDF's surface.
+textures; :class:`ScratchedMetal`, the ``scratch_diffraction`` BSDF's surface; and the volume inside a
+closed mesh (:class:`Volume`, carried by :class:`Volumetric` beside the surface, which may be an
+:class:`Interface`: a boundary that does not scatter).
 """
 from __future__ import annotations
 
@@ -18,19 +20,32 @@ from ..bsdf.parameters import CROSSINGS, DEFAULT_CROSSINGS, DEFAULT_DEPTH_PHASE,
 from ..scratch import ScratchSet
 
 __all__ = ["RGB", "Texture", "Checker", "Value", "Diffuse", "Principled", "Glossy", "Emission", "ScratchedMetal",
-           "Dielectric", "Translucent", "Transparent", "Mix", "Add", "Mask", "NormalMap", "Bump", "Material",
-           "walk_materials"]
+           "Dielectric", "Translucent", "Transparent", "Mix", "Add", "Mask", "NormalMap", "Bump", "Interface",
+           "Volume", "Volumetric", "Material", "walk_materials", "TEXTURE_COORDINATES"]
 
 RGB = tuple[float, float, float]
+
+#: Where a texture is looked up: the mesh's UV map, or Blender's Generated coordinates (the object's
+#: texture space, the bounding box of its evaluated mesh mapped to [0, 1]³; :class:`MeshData.generated`).
+TEXTURE_COORDINATES = ("uv", "generated")
 
 
 @dataclass(frozen=True)
 class Checker:
-    """Blender's Checker Texture in UV space: ``scale`` squares per UV unit, ``color2`` in the square at the origin."""
+    """Blender's Checker Texture: ``scale`` squares per coordinate unit, ``color2`` in the square at the origin.
+
+    In ``"uv"`` coordinates the squares tile the UV plane; in ``"generated"`` coordinates they are
+    Cycles' 3D checker (cubes of side 1/``scale`` in the object's texture space).
+    """
 
     color1: RGB = (0.8, 0.8, 0.8)
     color2: RGB = (0.2, 0.2, 0.2)
     scale: float = 5.0
+    coordinates: str = "uv"
+
+    def __post_init__(self):
+        if self.coordinates not in TEXTURE_COORDINATES:
+            raise ValueError(f"unknown texture coordinates {self.coordinates!r}")
 
 
 @dataclass(frozen=True)
@@ -46,10 +61,14 @@ class Texture:
     pixels: Optional[np.ndarray] = None
     srgb: bool = True
     interpolation: str = "bilinear"  #: or "nearest" (Blender's Closest)
+    #: ``"generated"``: looked up at the (x, y) of the Generated coordinates (Blender's Flat projection)
+    coordinates: str = "uv"
 
     def __post_init__(self):
         if (self.path is None) == (self.pixels is None):
             raise ValueError(f"texture {self.name!r}: give exactly one of path and pixels")
+        if self.coordinates not in TEXTURE_COORDINATES:
+            raise ValueError(f"texture {self.name!r}: unknown texture coordinates {self.coordinates!r}")
 
 
 Value = Union[float, RGB, Texture, Checker]
@@ -188,11 +207,55 @@ class Bump:
     bsdf: Material
 
 
+@dataclass(frozen=True)
+class Interface:
+    """A surface that does not scatter: light passes straight through (the boundary of a volume whose
+    material has nothing on its Surface; Mitsuba's ``null``)."""
+
+
+@dataclass(frozen=True)
+class Volume:
+    """A homogeneous participating medium (Blender's volume shaders on a closed mesh or the world).
+
+    ``scattering`` and ``absorption`` are the coefficients σ_s and σ_a per RGB channel in 1/scene unit
+    (Blender's densities are per scene unit); ``anisotropy`` is the Henyey–Greenstein mean cosine g.
+    """
+
+    scattering: RGB = (0.0, 0.0, 0.0)
+    absorption: RGB = (0.0, 0.0, 0.0)
+    anisotropy: float = 0.0
+
+    def __post_init__(self):
+        if min(self.scattering) < 0 or min(self.absorption) < 0:
+            raise ValueError(f"volume coefficients must not be negative, got {self.scattering}, {self.absorption}")
+        if not -1.0 < self.anisotropy < 1.0:
+            raise ValueError(f"volume anisotropy must lie in (-1, 1), got {self.anisotropy}")
+
+    @property
+    def extinction(self) -> RGB:
+        """σ_t = σ_s + σ_a per channel (1/scene unit)."""
+        return tuple(s + a for s, a in zip(self.scattering, self.absorption))
+
+    @property
+    def empty(self) -> bool:
+        """Nothing scatters or absorbs: the medium changes no ray."""
+        return max(self.extinction) <= 0.0
+
+
+@dataclass(frozen=True, eq=False)
+class Volumetric:
+    """A material with a volume: ``surface`` on the mesh (an :class:`Interface` when the material has nothing
+    on its Surface), ``volume`` filling the closed mesh."""
+
+    surface: Material
+    volume: Volume
+
+
 Material = Union[Diffuse, Principled, Glossy, Emission, ScratchedMetal, Dielectric, Translucent, Transparent, Mix,
-                 Add, Mask, NormalMap, Bump]
+                 Add, Mask, NormalMap, Bump, Interface, Volumetric]
 #: Materials holding other materials, and the fields that hold them.
 _NESTED = {Mix: ("first", "second"), Add: ("first", "second"), Mask: ("bsdf",), NormalMap: ("bsdf",),
-           Bump: ("bsdf",), Emission: ("bsdf",)}
+           Bump: ("bsdf",), Emission: ("bsdf",), Volumetric: ("surface",)}
 
 
 def walk_materials(material):

@@ -29,8 +29,8 @@ def add_camera(scene, location=(0, 0, 5), rotation=(0, 0, 0), **data):
     return obj
 
 
-def material(name, shader="ShaderNodeBsdfDiffuse", **inputs):
-    """A material whose Surface is one ``shader`` node with ``inputs`` set."""
+def material(name, shader="ShaderNodeBsdfDiffuse", *, output_socket="Surface", **inputs):
+    """A material whose Surface (or ``output_socket``: "Volume") is one ``shader`` node with ``inputs`` set."""
     mat = bpy.data.materials.new(name)
     tree = mat.node_tree
     tree.nodes.clear()
@@ -38,7 +38,7 @@ def material(name, shader="ShaderNodeBsdfDiffuse", **inputs):
     node = tree.nodes.new(shader)
     for key, value in inputs.items():
         node.inputs[key].default_value = value
-    tree.links.new(node.outputs[0], output.inputs["Surface"])
+    tree.links.new(node.outputs[0], output.inputs[output_socket])
     return mat
 
 

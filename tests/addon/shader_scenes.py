@@ -104,6 +104,13 @@ def principled():
                     **{"Base Color": (0.8, 0.2, 0.2, 1), "Roughness": 0.4, "Metallic": 0.0})
 
 
+def principled_sheen():
+    """Sheen on a dark base: Cycles' microfiber sheen (Principled v2) against Mitsuba's Disney sheen."""
+    return material("Sheen", "ShaderNodeBsdfPrincipled",
+                    **{"Base Color": (0.05, 0.05, 0.3, 1), "Roughness": 0.6, "Sheen Weight": 1.0,
+                       "Sheen Roughness": 0.5})
+
+
 def principled_transmission():
     return material("Transmission", "ShaderNodeBsdfPrincipled",
                     **{"Base Color": (1, 1, 1, 1), "Transmission Weight": 1.0, "Roughness": 0.0, "IOR": 1.45})
@@ -129,12 +136,21 @@ def mix_textured():
     return mat
 
 
-def add_shader():
-    mat = material("Add", "ShaderNodeAddShader")
-    _link(mat, _node(mat, "ShaderNodeBsdfDiffuse", Color=(0.4, 0.3, 0.2, 1)).outputs[0], _shader(mat).inputs[0])
-    _link(mat, _node(mat, "ShaderNodeBsdfAnisotropic", Color=(0.3, 0.3, 0.3, 1), Roughness=0.25).outputs[0],
+def _added(name, diffuse_colour, glossy_colour, roughness):
+    mat = material(name, "ShaderNodeAddShader")
+    _link(mat, _node(mat, "ShaderNodeBsdfDiffuse", Color=diffuse_colour).outputs[0], _shader(mat).inputs[0])
+    _link(mat, _node(mat, "ShaderNodeBsdfAnisotropic", Color=glossy_colour, Roughness=roughness).outputs[0],
           _shader(mat).inputs[1])
     return mat
+
+
+def add_shader():
+    return _added("Add", (0.4, 0.3, 0.2, 1), (0.3, 0.3, 0.3, 1), 0.25)
+
+
+def add_capped():
+    """White diffuse + white glossy: Cycles' sum reflects up to twice the light; here both halves are halved."""
+    return _added("AddCapped", (1, 1, 1, 1), (1, 1, 1, 1), 0.3)
 
 
 def emission_mix():
@@ -173,6 +189,23 @@ def checker():
     return mat
 
 
+def checker_generated():
+    """A checker with nothing on its Vector: Cycles' default Generated coordinates, a 3D checker."""
+    mat = material("CheckerGenerated")
+    node = _node(mat, "ShaderNodeTexChecker", Color1=(0.9, 0.9, 0.9, 1), Color2=(0.1, 0.1, 0.1, 1), Scale=4.0)
+    _link(mat, node.outputs["Color"], _shader(mat).inputs["Color"])
+    return mat
+
+
+def image_generated():
+    """Stripes along the Generated x (Flat projection), i.e. across the sphere's bounding box, not its UVs."""
+    mat = material("ImageGenerated")
+    node = _image_node(mat, _image("stripes", _rgba(0.1 + 0.8 * _stripes(count=6))))
+    _link(mat, _node(mat, "ShaderNodeTexCoord").outputs["Generated"], node.inputs["Vector"])
+    _link(mat, node.outputs["Color"], _shader(mat).inputs["Color"])
+    return mat
+
+
 def ramp_on_image():
     mat = material("Ramp")
     ramp = _node(mat, "ShaderNodeValToRGB")
@@ -199,10 +232,57 @@ def math_and_mix_rgb():
     return mat
 
 
+def _volume_only(name, kind, **inputs):
+    """A material with ``kind`` on its Volume output and nothing on its Surface (smoke in a closed mesh)."""
+    return material(name, kind, output_socket="Volume", **inputs)
+
+
+def volume_principled():
+    return _volume_only("Smoke", "ShaderNodeVolumePrincipled", Color=(0.8, 0.8, 0.8, 1), Density=3.0,
+                        Anisotropy=0.3, **{"Absorption Color": (0.4, 0.4, 0.4, 1)})
+
+
+def volume_scatter():
+    return _volume_only("Mist", "ShaderNodeVolumeScatter", Color=(0.9, 0.6, 0.3, 1), Density=4.0, Anisotropy=-0.3)
+
+
+def volume_absorption():
+    return _volume_only("Ink", "ShaderNodeVolumeAbsorption", Color=(0.3, 0.6, 0.9, 1), Density=2.0)
+
+
+def volume_in_glass():
+    mat = material("Tinted", "ShaderNodeBsdfGlass", Color=(1, 1, 1, 1), Roughness=0.0, IOR=1.45)
+    absorb = _node(mat, "ShaderNodeVolumeAbsorption", Color=(0.4, 0.7, 0.9, 1), Density=1.5)
+    _link(mat, absorb.outputs[0], mat.node_tree.nodes["Material Output"].inputs["Volume"])
+    return mat
+
+
+def world_fog():
+    """A grey sphere in a scattering world volume, lit by an area light above (a uniform world at infinity
+    is lost in the fog, in both engines)."""
+    return material("FogSphere", Color=(0.6, 0.6, 0.6, 1))
+
+
+def _fog_staging(scene):
+    world = scene.world
+    world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.0
+    fog = world.node_tree.nodes.new("ShaderNodeVolumeScatter")
+    fog.inputs["Color"].default_value, fog.inputs["Density"].default_value = (1, 1, 1, 1), 0.08
+    world.node_tree.links.new(fog.outputs[0], world.node_tree.nodes["World Output"].inputs["Volume"])
+    light = bpy.data.lights.new("Panel", "AREA")
+    light.energy, light.size = 400.0, 1.5
+    obj = bpy.data.objects.new("Panel", light)
+    scene.collection.objects.link(obj)
+    obj.location = (0.0, 0.5, 3.0)
+
+
 SHADERS = {function.__name__: function for function in (
     diffuse, glossy, glass, rough_glass, refraction, translucent, transparent, principled, principled_transmission,
-    principled_alpha, mix_shader, mix_textured, add_shader, emission_mix, normal_map, bump, checker,
-    ramp_on_image, math_and_mix_rgb)}
+    principled_alpha, principled_sheen, mix_shader, mix_textured, add_shader, add_capped, emission_mix, normal_map,
+    bump, checker, checker_generated, image_generated, ramp_on_image, math_and_mix_rgb, volume_principled,
+    volume_scatter, volume_absorption, volume_in_glass, world_fog)}
+#: Scenes that change the staging besides the sphere's material.
+STAGING = {"world_fog": _fog_staging}
 
 
 def build(scene, shader: str) -> None:
@@ -215,6 +295,8 @@ def build(scene, shader: str) -> None:
     sphere = bpy.context.active_object
     bpy.ops.object.shade_smooth()
     sphere.data.materials.append(SHADERS[shader]())
+    if shader in STAGING:
+        STAGING[shader](scene)
     camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
     scene.collection.objects.link(camera)
     camera.data.lens = 50
@@ -248,7 +330,9 @@ def render(engine: str, shader: str, path, *, samples: int, seed: int = 0):
         cycles.use_adaptive_sampling = False
         cycles.max_bounces = cycles.diffuse_bounces = cycles.glossy_bounces = 12
         cycles.transmission_bounces = cycles.transparent_max_bounces = 12
+        cycles.volume_bounces = 12  # Cycles' default is 0 (single scattering); Mitsuba's volpath has no such limit
         cycles.blur_glossy = 0.0  # no glossy filter: Mitsuba has none
+        cycles.pixel_filter_type, cycles.filter_width = "BOX", 1.0  # this engine's default pixel filter
         cycles.sample_clamp_direct = cycles.sample_clamp_indirect = 0.0
         scene.cycles.device = "CPU"
     else:

@@ -181,7 +181,7 @@ def test_checker_texture_becomes_a_uv_checker(staged):
     link(mat, coordinates.outputs["UV"], checker.inputs["Vector"])
     link(mat, checker.outputs["Color"], shader_of(mat).inputs["Color"])
     result, warnings = gathered(staged, mat)
-    assert result.reflectance == S.Checker((1.0, 0.0, 0.0), (0.0, 0.0, 1.0), 8.0)
+    assert result.reflectance == S.Checker((1.0, 0.0, 0.0), (0.0, 0.0, 1.0), 8.0, "uv")
     assert not warnings
 
 
@@ -244,3 +244,60 @@ def test_emission_under_a_textured_mix_factor_is_halved_with_a_warning(staged):
     result, warnings = gathered(staged, mat)
     assert result.radiance == pytest.approx((1.0, 1.0, 1.0)) and isinstance(result.bsdf.factor, S.Texture)
     assert any("textured factor" in w for w in warnings)
+
+
+# ---- texture coordinates -------------------------------------------------------------------------------
+
+def test_checker_without_a_vector_uses_generated_coordinates_of_the_mesh(staged):
+    """Cycles' default for procedural textures: the object's texture space, (co − location) / (2 size) + 0.5
+    (the default cube: (co + 1) / 2), given per corner vertex to the meshes of that material."""
+    mat = material("K3")
+    checker = node(mat, "ShaderNodeTexChecker", Scale=3.0)
+    link(mat, checker.outputs["Color"], shader_of(mat).inputs["Color"])
+    bpy.ops.mesh.primitive_cube_add(size=2.0)
+    cube = bpy.context.active_object
+    cube.data.materials.append(mat)
+    description = gather_scene(bpy.context.evaluated_depsgraph_get())
+    assert description.materials["material:K3"].reflectance.coordinates == "generated"
+    (shape,) = description.shapes
+    np.testing.assert_allclose(shape.mesh.generated, (shape.mesh.positions + 1) / 2, atol=1e-6)
+    assert not [w for w in description.warnings if "K3" in w]
+    # a texture space of its own (Auto Texture Space off) moves and scales the coordinates
+    cube.data.use_auto_texspace = False
+    cube.data.texspace_location, cube.data.texspace_size = (0.5, 0, 0), (2, 1, 0.5)
+    (shape,) = gather_scene(bpy.context.evaluated_depsgraph_get()).shapes
+    expected = (shape.mesh.positions - np.array([0.5, 0, 0])) / (2 * np.array([2, 1, 0.5])) + 0.5
+    np.testing.assert_allclose(shape.mesh.generated, expected, atol=1e-6)
+
+
+def test_texture_coordinate_outputs_choose_uv_or_generated(staged):
+    mat = material("Coords")
+    coordinates = node(mat, "ShaderNodeTexCoord")
+    texture = image_node(mat, image("flat", np.ones((2, 2, 4), np.float32)))
+    link(mat, coordinates.outputs["Generated"], texture.inputs["Vector"])
+    link(mat, texture.outputs["Color"], shader_of(mat).inputs["Color"])
+    result, warnings = gathered(staged, mat)
+    assert result.reflectance.coordinates == "generated" and not warnings
+    description = gather_scene(bpy.context.evaluated_depsgraph_get())
+    assert all(shape.mesh.generated is not None for shape in description.shapes)
+    link(mat, coordinates.outputs["Object"], texture.inputs["Vector"])
+    result, warnings = gathered(staged, mat)
+    assert result.reflectance.coordinates == "uv"
+    assert any("'Object' of 'Texture Coordinate'" in w and "UV map is used" in w for w in warnings)
+    # meshes of materials without Generated textures carry no such coordinates
+    plain, _ = gathered(staged, material("Plain"))
+    assert all(shape.mesh.generated is None for shape in gather_scene(bpy.context.evaluated_depsgraph_get()).shapes
+               if shape.material == "material:Plain")
+
+
+def test_add_shader_that_creates_energy_is_named_in_a_warning(staged):
+    mat = material("Sum", "ShaderNodeAddShader")
+    link(mat, node(mat, "ShaderNodeBsdfDiffuse", Color=(1, 1, 1, 1)).outputs[0], shader_of(mat).inputs[0])
+    link(mat, node(mat, "ShaderNodeBsdfAnisotropic", Color=(1, 1, 1, 1)).outputs[0], shader_of(mat).inputs[1])
+    _, warnings = gathered(staged, mat)
+    assert any("Add Shader 'Add Shader'" in w and "2.00×" in w and "0.50×" in w for w in warnings)
+    dim = material("Dim", "ShaderNodeAddShader")
+    link(dim, node(dim, "ShaderNodeBsdfDiffuse", Color=(0.4, 0.3, 0.2, 1)).outputs[0], shader_of(dim).inputs[0])
+    link(dim, node(dim, "ShaderNodeBsdfAnisotropic", Color=(0.3, 0.3, 0.3, 1)).outputs[0], shader_of(dim).inputs[1])
+    _, warnings = gathered(staged, dim)
+    assert not any("'Dim'" in w for w in warnings)  # 0.4 + 0.3 ≤ 1: rendered as Cycles' sum

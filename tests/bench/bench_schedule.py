@@ -23,6 +23,23 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "tests" / "bridge"))
+sys.path.insert(0, str(ROOT / "tests" / "bridge" / "builder"))
+
+
+def scratched_plate(size: int, material=None):
+    """The plate of tests/bridge/builder/test_scratched.py on a ``size``² film, carrying 3 000 scratches of the
+    demo's looks (or wearing ``material``)."""
+    import dataclasses
+
+    from scratch_iridescence.mitsuba_bridge import scene as S
+    from scratch_iridescence.mitsuba_bridge import scratch
+    from test_scratched import metal, plate_scene
+
+    if material is None:
+        material = metal(scratch.random_scratches(3000, seed=5, width=scratch.Gaussian(4e-6, 1.3e-6),
+                                                  length=(0.2, 0.6), depth=scratch.Gaussian(250e-9, 80e-9),
+                                                  depth_variation=(1.1, 0.04)))
+    return dataclasses.replace(plate_scene(material), film=S.Film(size, size))
 
 
 def best_of(repeat, function):
@@ -43,22 +60,15 @@ def main() -> None:
 
     import numpy as np
 
-    from scratch_iridescence.mitsuba_bridge import builder, scratch
+    from scratch_iridescence.mitsuba_bridge import builder
     from scratch_iridescence.mitsuba_bridge.render.activation import activate
     from scratch_iridescence.mitsuba_bridge.render import parts, passes as render, schedule
     from scratch_iridescence.mitsuba_bridge import scene as S
 
     variant = activate("auto")
     import mitsuba as mi
-    from test_scratched import metal, plate_scene
 
-    scratches = scratch.random_scratches(3000, seed=5, width=scratch.Gaussian(4e-6, 1.3e-6), length=(0.2, 0.6),
-                                         depth=scratch.Gaussian(250e-9, 80e-9), depth_variation=(1.1, 0.04))
-    description = plate_scene(metal(scratches))
-    description = S.SceneDescription(film=S.Film(args.size, args.size), camera=description.camera,
-                                     shapes=description.shapes, materials=description.materials,
-                                     world=description.world)
-    scene = builder.load_scene(description, S.RenderSettings())
+    scene = builder.load_scene(scratched_plate(args.size), S.RenderSettings())
     chunks = schedule.sample_schedule(args.spp, args.size ** 2, 0)
     mi.render(scene, spp=args.spp, seed=0)  # compile every kernel once (a user's second render finds them cached)
     render.render_image(scene, args.spp)

@@ -9,8 +9,9 @@ from __future__ import annotations
 import numpy as np
 
 from ....mitsuba_bridge.scene import (Checker, Emission, MeshData, RenderSettings, SceneDescription, ScratchedMetal,
-                                      Shape, Texture, walk_materials)
+                                      Shape, Texture, Volumetric, walk_materials)
 from ....mitsuba_bridge.scene.finite import with_finite_meshes
+from ....mitsuba_bridge.scene.glints import check_glints, surface_samples
 from ....mitsuba_bridge.scratch import ScratchFormatError, ScratchSet
 from ...geometry import units
 from ...storage import has_scratches, read_scratches
@@ -19,7 +20,7 @@ from .lights import gather_light
 from .materials import gather_material
 from .meshes import mesh_parts
 from .report import GatherError, Warnings
-from .world import gather_world
+from .world import gather_world, gather_world_volume
 
 __all__ = ["gather_scene", "gather_settings", "renderable_instances", "GatherError", "Warnings", "GEOMETRY_TYPES",
            "scratched_metal"]
@@ -71,19 +72,41 @@ def gather_scene(depsgraph, *, camera=None, view=None) -> SceneDescription:
             warnings.warn(f"{obj.type.lower()} objects are not supported and are not rendered ('{obj.name}')",
                           key=("type", obj.type))
     world = gather_world(scene.world, warnings)
+    world_volume = gather_world_volume(scene.world, warnings)
     if not shapes and not lights and world is None:
         warnings.warn("the scene has no visible objects, lights or world: the image is black")
     elif not lights and world is None and not any(_emits(m) for m in materials.values()):
         warnings.warn("the scene has no lights, no emissive material and a black world: the image is black; "
                       "add a light or a world colour")
+    else:
+        _warn_unlit_glints(shapes, materials, camera_description, lights, world, warnings)
     # NaN/inf vertices (a broken modifier or driver) would blacken the image silently: drop them, with a warning.
     return with_finite_meshes(SceneDescription(film=film, camera=camera_description, shapes=tuple(shapes),
                                                materials=materials, lights=tuple(lights), world=world,
-                                               warnings=warnings.as_tuple()))
+                                               warnings=warnings.as_tuple(), world_volume=world_volume))
+
+
+def _warn_unlit_glints(shapes, materials: dict, camera, lights, world, warnings: Warnings) -> None:
+    """A warning per scratched object whose glints no light of the scene can show (:mod:`scene.glints`)."""
+    emissive = any(_emits(m) for m in materials.values())
+    for key, material in materials.items():
+        metal = next((part for part in walk_materials(material) if isinstance(part, ScratchedMetal)), None)
+        if metal is None or metal.scratches.count == 0:
+            continue
+        samples = [surface_samples(shape.mesh, shape.to_world) for shape in shapes if shape.material == key]
+        if not samples:
+            continue
+        surfaces = tuple(np.concatenate([sample[i] for sample in samples]) for i in (0, 1))
+        check = check_glints(surfaces, metal.scratches, camera, lights, world, emissive=emissive)
+        if not check.shows:
+            name = key.split(":", 1)[1]
+            warnings.warn(f"object '{name}': no light can show its scratches' glints ({check.describe()}): it "
+                          "renders as a dark mirror; Object Properties › Scratches › Add Glint Lighting places a "
+                          "sun that shows them", key=("glints", name))
 
 
 def _emits(material) -> bool:
-    return isinstance(material, Emission)
+    return isinstance(material.surface if isinstance(material, Volumetric) else material, Emission)
 
 
 def _gather_object(obj, matrix, scene, materials: dict, meshes: dict, warnings: Warnings) -> list[Shape]:
@@ -91,11 +114,11 @@ def _gather_object(obj, matrix, scene, materials: dict, meshes: dict, warnings: 
     scratched = has_scratches(original)
     # Objects (and instances) showing the same evaluated mesh share its data; other
     # types are converted per object.
-    key = (obj.data.as_pointer() if obj.type == "MESH" else obj.name, scratched)
+    key = (obj.data.as_pointer() if obj.type == "MESH" else obj.name, scratched, False)
     if key not in meshes:
         meshes[key] = _object_parts(obj, scratched)
     parts = meshes[key]
-    shapes = []
+    keys = []
     for slot, mesh in parts:
         material = obj.material_slots[slot].material if slot < len(obj.material_slots) else None
         if scratched:
@@ -107,21 +130,27 @@ def _gather_object(obj, matrix, scene, materials: dict, meshes: dict, warnings: 
             material_key = "default" if material is None else f"material:{material.name}"
             if material_key not in materials:
                 materials[material_key] = gather_material(material, warnings)
-            if mesh.uvs is None and _uses_texture(materials[material_key]):
+            if mesh.uvs is None and _uses_texture(materials[material_key], "uv"):
                 warnings.warn(f"object '{obj.name}' has no UV map but its material uses an image texture: "
                               "the texture is read at UV (0, 0)", key=("no-uv", obj.name))
-        shapes.append(Shape(name=mesh.name, mesh=mesh, to_world=matrix, material=material_key))
-    return shapes
+        keys.append(material_key)
+    if any(_uses_texture(materials[material_key], "generated") for material_key in keys):
+        generated_key = key[:2] + (True,)  # the same parts with Generated coordinates
+        if generated_key not in meshes:
+            meshes[generated_key] = _object_parts(obj, scratched, generated=True)
+        parts = meshes[generated_key]
+    return [Shape(name=mesh.name, mesh=mesh, to_world=matrix, material=material_key)
+            for (_, mesh), material_key in zip(parts, keys)]
 
 
-def _object_parts(obj, scratched: bool):
+def _object_parts(obj, scratched: bool, *, generated: bool = False):
     """Mesh parts of an evaluated object (scratched objects stay whole: one BSDF covers them)."""
     if obj.type == "MESH":
-        parts = mesh_parts(obj.data, obj.name)
+        parts = mesh_parts(obj.data, obj.name, generated=generated)
     else:
         mesh = obj.to_mesh()
         try:
-            parts = mesh_parts(mesh, obj.name) if mesh is not None else []
+            parts = mesh_parts(mesh, obj.name, generated=generated) if mesh is not None else []
         finally:
             obj.to_mesh_clear()
     if scratched and len(parts) > 1:
@@ -136,13 +165,17 @@ def _join(meshes, name) -> MeshData:
         name, np.concatenate([m.positions for m in meshes]),
         np.concatenate([m.faces + np.uint32(o) for m, o in zip(meshes, offsets)]),
         np.concatenate([m.normals for m in meshes]) if has("normals") else None,
-        np.concatenate([m.uvs for m in meshes]) if has("uvs") else None)
+        np.concatenate([m.uvs for m in meshes]) if has("uvs") else None,
+        np.concatenate([m.generated for m in meshes]) if has("generated") else None)
 
 
-def _uses_texture(material) -> bool:
-    return any(isinstance(getattr(part, name, None), (Texture, Checker)) for part in walk_materials(material)
-               for name in ("reflectance", "base_color", "metallic", "roughness", "color", "factor", "opacity",
-                            "texture", "height"))
+def _uses_texture(material, coordinates: str) -> bool:
+    """Whether a texture of ``material`` is looked up in ``coordinates`` (``"uv"`` or ``"generated"``)."""
+    return any(isinstance(value, (Texture, Checker)) and value.coordinates == coordinates
+               for part in walk_materials(material)
+               for value in (getattr(part, name, None) for name in ("reflectance", "base_color", "metallic",
+                                                                   "roughness", "color", "factor", "opacity",
+                                                                   "texture", "height")))
 
 
 def scratched_metal(obj, scene, has_uvs: bool, warnings: Warnings) -> ScratchedMetal:

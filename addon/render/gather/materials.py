@@ -12,12 +12,18 @@ On a scratched object a node group named "Scratch BSDF" stands for the
 """
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
-from ....mitsuba_bridge.scene import (Add, Bump, Checker, Dielectric, Diffuse, Emission, Glossy, Mask, Mix, NormalMap,
-                                      Principled, Texture, Translucent, Transparent, walk_materials)
+from ....mitsuba_bridge.scene import (Add, Bump, Checker, Dielectric, Diffuse, Emission, Glossy, Interface, Mask, Mix,
+                                      NormalMap, Principled, Texture, Translucent, Transparent, Volumetric,
+                                      walk_materials)
+from ....mitsuba_bridge.scene.albedo import add_sum
 from .report import Warnings
+from .textures import brightest_pixel
 from .values import ValueReader, linked_output
+from .volumes import gather_volume
 
 __all__ = ["gather_material", "linked_node", "DEFAULT_MATERIAL", "FALLBACK_MATERIAL", "SUPPORTED_SHADERS",
            "SCRATCH_GROUP"]
@@ -95,7 +101,14 @@ class _Shaders:
                     return second
             return Mix(factor, first, second)
         if kind == "ShaderNodeAddShader":
-            return Add(self.shader(node.inputs[0]), self.shader(node.inputs[1]))
+            added = Add(self.shader(node.inputs[0]), self.shader(node.inputs[1]))
+            total = add_sum(added, brightest_pixel)
+            if total > 1.0 + 1e-6:
+                self.warnings.warn(f"{self.owner}: Add Shader '{node.name}' scatters up to {total:.2f}× the light "
+                                   f"that arrives: both halves are rendered at {1 / total:.2f}× so that the surface "
+                                   "creates no energy (Cycles renders the sum, brighter)",
+                                   key=("add", self.material_name, node.name))
+            return added
         if kind == "ShaderNodeEmission":
             colour = self.value(node, "Color", True)
             if not isinstance(colour, tuple):
@@ -178,6 +191,14 @@ class _Shaders:
             return Emission(radiance=tuple(c * strength for c in emission), bsdf=surface)
         return surface
 
+    def in_uv(self, texture: Texture, node) -> Texture:
+        """``texture`` looked up in UV (normal and bump maps are: Mitsuba's take their tangents from the UVs)."""
+        if texture.coordinates == "uv":
+            return texture
+        self.warnings.warn(f"{self.owner}: the texture of '{node.name}' is laid out in Generated coordinates; "
+                           "normal and bump maps read it in UV here")
+        return dataclasses.replace(texture, coordinates="uv")
+
     def with_normal(self, node, bsdf):
         """``bsdf`` under the Normal Map or Bump node plugged into ``node``'s Normal input, if any."""
         if "Normal" not in node.inputs:
@@ -199,7 +220,7 @@ class _Shaders:
             if not isinstance(texture, Texture):
                 self.warnings.warn(f"{self.owner}: normal map '{source.name}' needs an image texture: ignored")
                 return bsdf
-            return NormalMap(texture, bsdf)
+            return NormalMap(self.in_uv(texture, source), bsdf)
         if source.bl_idname == "ShaderNodeBump":
             height = self.value(source, "Height")
             # Mitsuba's bumpmap displaces by height × scale along the normal, as Blender's by height × distance;
@@ -210,6 +231,7 @@ class _Shaders:
                 if isinstance(height, Checker):
                     self.warnings.warn(f"{self.owner}: bump '{source.name}' needs an image texture as height: ignored")
                 return inner
+            height = self.in_uv(height, source)
             if inner is not bsdf:  # Blender applies the Bump's own Normal input first: the outer perturbation
                 return NormalMap(inner.texture, Bump(height, -scale if source.invert else scale, inner.bsdf)) \
                     if isinstance(inner, NormalMap) else Bump(height, -scale if source.invert else scale, inner)
@@ -264,6 +286,7 @@ def gather_material(material, warnings: Warnings, *, scratch=None):
 
     ``scratch``: the object's :class:`ScratchedMetal` when it carries scratches. It replaces
     a "Scratch BSDF" node group in the tree, or else the whole material (as before such groups).
+    A shader on the output's Volume makes a :class:`Volumetric` material (docs/rendering.md, Volumes).
     """
     if material is None:
         return DEFAULT_MATERIAL if scratch is None else scratch
@@ -277,10 +300,25 @@ def gather_material(material, warnings: Warnings, *, scratch=None):
             return scratch
         warnings.warn(f"{owner} has no Material Output node: rendered as diffuse grey")
         return FALLBACK_MATERIAL
+    has_volume = "Volume" in output.inputs and linked_node(output.inputs["Volume"]) is not None
+    if scratch is not None and has_volume:
+        warnings.warn(f"{owner}: the volume inside the scratched object is not rendered (the scratch BSDF is "
+                      "opaque metal)", key=("scratched-volume", material.name))
+        has_volume = False
+    volume = gather_volume(output.inputs["Volume"], warnings, owner) if has_volume else None
+    surface = _surface(output, material, owner, scratch, warnings, has_volume=has_volume)
+    return surface if volume is None else Volumetric(surface, volume)
+
+
+def _surface(output, material, owner: str, scratch, warnings: Warnings, *, has_volume: bool):
+    """The material of the output's Surface (an :class:`Interface` when only a volume is connected)."""
     if linked_node(output.inputs["Surface"]) is None:
         if scratch is not None:
             return scratch
-        warnings.warn(f"{owner}: nothing is connected to the output's Surface: rendered black, as in Cycles")
+        if has_volume:  # Cycles renders the volume with no surface: the mesh only bounds it (even one
+            return Interface()  # not supported here, which gather_volume reported)
+        warnings.warn(f"{owner}: nothing is connected to the output's Surface or Volume: rendered black, "
+                      "as in Cycles")
         return BLACK
     shaders = _Shaders(warnings, owner, scratch, material.name)
     surface = shaders.shader(output.inputs["Surface"])

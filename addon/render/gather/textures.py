@@ -14,7 +14,7 @@ import numpy as np
 from ....mitsuba_bridge.scene import Texture
 from .report import Warnings
 
-__all__ = ["gather_image", "image_pixels", "MISSING"]
+__all__ = ["gather_image", "image_pixels", "brightest_pixel", "MISSING"]
 
 MISSING = (1.0, 0.0, 1.0)  # what Blender renders for a missing image
 
@@ -81,3 +81,23 @@ def image_pixels(node, *, alpha: bool = False) -> np.ndarray:
 
         colour = srgb_to_linear(colour)
     return np.ascontiguousarray(colour, dtype=np.float32)
+
+
+def brightest_pixel(texture: Texture) -> np.ndarray:
+    """The brightest linear value per channel of a gathered texture, (3,) (its image's pixels for a file)."""
+    from ....mitsuba_bridge.scene.colour import srgb_to_linear
+
+    if texture.pixels is not None:
+        pixels = srgb_to_linear(texture.pixels) if texture.srgb else texture.pixels
+        return np.asarray(pixels, dtype=np.float64)[..., :3].reshape(-1, 3).max(axis=0)
+    image = bpy.data.images.get(texture.name)
+    width, height = image.size if image is not None else (0, 0)
+    if width == 0 or height == 0:
+        return np.ones(3)  # unknown: assume white, as bright as a reflectance gets
+    pixels = np.empty(width * height * image.channels, dtype=np.float32)
+    image.pixels.foreach_get(pixels)
+    pixels = pixels.reshape(-1, image.channels)
+    colour = np.repeat(pixels[:, :1], 3, axis=1) if image.channels < 3 else pixels[:, :3]
+    if _is_srgb(image) and not image.is_float:
+        colour = srgb_to_linear(colour)
+    return np.asarray(colour, dtype=np.float64).max(axis=0)

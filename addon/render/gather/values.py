@@ -8,12 +8,18 @@ form Mitsuba can take:
 * Image Texture outputs pass through as textures (the file itself when possible);
 * Math, Mix, Invert and Color Ramp nodes applied to image textures are *baked*:
   evaluated per pixel with numpy into a new linear texture of the image's size;
-* Checker Texture becomes Mitsuba's ``checkerboard`` in UV space.
+* Checker Texture becomes Mitsuba's ``checkerboard`` in UV space, or Cycles' 3D checker in Generated
+  coordinates (its default: nothing on the Vector input).
+
+Textures keep the coordinates Cycles would use: the UV map, or the object's Generated texture space
+(a checker with nothing on its Vector, any texture fed by Texture Coordinate › Generated).
 
 Anything else (Noise, Voronoi, vector nodes...) keeps the input's own value,
 with one warning naming the node.
 """
 from __future__ import annotations
+
+import dataclasses
 
 import numpy as np
 
@@ -49,10 +55,10 @@ class _Image:
 
 
 class _Baked:
-    """Pixels computed here: (H, W, 3) float32, linear, row 0 at the top."""
+    """Pixels computed here: (H, W, 3) float32, linear, row 0 at the top, looked up at ``coordinates``."""
 
-    def __init__(self, pixels: np.ndarray, interpolation: str):
-        self.pixels, self.interpolation = pixels, interpolation
+    def __init__(self, pixels: np.ndarray, interpolation: str, coordinates: str = "uv"):
+        self.pixels, self.interpolation, self.coordinates = pixels, interpolation, coordinates
 
 
 def _is_array(value) -> bool:
@@ -133,9 +139,10 @@ class ValueReader:
         if isinstance(value, _Image):
             return value.texture
         if isinstance(value, _Baked):
-            return Texture(name=name, pixels=value.pixels, srgb=False, interpolation=value.interpolation)
+            return Texture(name=name, pixels=value.pixels, srgb=False, interpolation=value.interpolation,
+                           coordinates=value.coordinates)
         if isinstance(value, Checker):
-            return value if colour else Checker(_grey(value.color1), _grey(value.color2), value.scale)
+            return value if colour else _grey_checker(value)
         array = np.asarray(value, dtype=np.float64)
         if colour:
             return tuple(float(c) for c in np.broadcast_to(array, (3,)))
@@ -164,24 +171,61 @@ class ValueReader:
         """Input ``name`` as a number or a single-channel pixel array (colours become luminance)."""
         return _as_float(self.evaluate(node.inputs[name], owner_node=node), self)
 
+    def mean(self, node, name: str, *, colour: bool):
+        """``(value, source)``: input ``name`` of ``node`` averaged over space, and the node that made it vary.
+
+        A constant comes back as it is with ``source`` None. An image (or what is baked from one) gives the
+        mean of its pixels, a checker the mean of its two colours, and Noise and Wave textures their mean
+        level, 0.5; ``source`` is then that texture node, for a warning naming it. Where a uniform value is
+        all a renderer takes (a homogeneous volume), this is the value that keeps the mean extinction.
+        """
+        socket = node.inputs[name]
+        source = linked_output(socket)
+        if source is not None and source[0].bl_idname in _HALF_MEAN:
+            value = 0.5
+        else:
+            value = self.evaluate(socket, owner_node=node)
+            if isinstance(value, Checker):
+                value = (np.asarray(value.color1, dtype=np.float64) + np.asarray(value.color2, dtype=np.float64)) / 2
+            elif _is_array(value):
+                value = self._pixels(value).reshape(-1, 3).mean(axis=0)
+            else:
+                source = None  # a constant (folded): nothing varies
+        return self.finish(value, colour=colour, name=""), (None if source is None else source[0])
+
     # ---- nodes --------------------------------------------------------------------------------------
 
-    def _image(self, node, output):
+    def coordinates(self, node, default: str) -> str:
+        """``"uv"`` or ``"generated"``: where the texture ``node`` is looked up (``default`` with nothing on its
+        Vector: UV for images, Generated for procedural textures, as in Cycles)."""
         vector = linked_output(node.inputs["Vector"])
-        if vector is not None and vector[0].bl_idname not in ("ShaderNodeUVMap", "ShaderNodeTexCoord"):
-            self.warnings.warn(f"{self.owner}: the texture coordinates of '{node.name}' come from "
-                               f"'{vector[0].name}', which is not supported: the active UV map is used")
+        if vector is None:
+            return default
+        source, socket = vector
+        if source.bl_idname == "ShaderNodeUVMap" or (source.bl_idname == "ShaderNodeTexCoord"
+                                                     and socket.identifier == "UV"):
+            return "uv"
+        if source.bl_idname == "ShaderNodeTexCoord" and socket.identifier == "Generated":
+            return "generated"
+        what = f"'{socket.name}' of '{source.name}'" if source.bl_idname == "ShaderNodeTexCoord" else \
+            f"'{source.name}' ({source.bl_label})"
+        instead = {"uv": "the active UV map is used", "generated": "Generated coordinates are used"}[default]
+        self.warnings.warn(f"{self.owner}: the texture coordinates of '{node.name}' come from {what}, which is not "
+                           f"supported: {instead}")
+        return default
+
+    def _image(self, node, output):
+        coordinates = self.coordinates(node, "uv")
         if output.identifier == "Alpha":
-            return _Baked(image_pixels(node, alpha=True), _interpolation(node))
-        return _Image(node, gather_image(node, self.warnings, owner=self.owner))
+            return _Baked(image_pixels(node, alpha=True), _interpolation(node), coordinates)
+        texture = gather_image(node, self.warnings, owner=self.owner)
+        if getattr(node, "projection", "FLAT") != "FLAT" and coordinates == "generated":
+            self.warnings.warn(f"{self.owner}: the {node.projection.lower()} projection of '{node.name}' is not "
+                               "supported: Flat is used")
+        return _Image(node, dataclasses.replace(texture, coordinates=coordinates))
 
     def _checker(self, node, output):
-        vector = linked_output(node.inputs["Vector"])
-        from_uv = vector is not None and (vector[0].bl_idname == "ShaderNodeUVMap" or (
-            vector[0].bl_idname == "ShaderNodeTexCoord" and vector[1].identifier == "UV"))
-        if not from_uv:
-            self.warnings.warn(f"{self.owner}: Checker Texture '{node.name}' is laid out in UV coordinates here "
-                               "(connect a UV output to its Vector for the same look in Cycles)")
+        coordinates = self.coordinates(node, "generated")
         colours = []
         for name in ("Color1", "Color2"):
             value = self.evaluate(node.inputs[name], owner_node=node)
@@ -196,7 +240,7 @@ class ValueReader:
             scale = 5.0
         if output.identifier == "Fac":
             colours = [(1.0,) * 3, (0.0,) * 3]
-        return Checker(colours[0], colours[1], float(scale))
+        return Checker(colours[0], colours[1], float(scale), coordinates)
 
     def _ramp(self, node, output):
         factor = self.number(node, "Fac")
@@ -272,8 +316,12 @@ class ValueReader:
         shape = max((p.shape for p in pixels if p.ndim == 3), key=lambda s: s[0] * s[1])
         pixels = [_resized(p, shape) if p.ndim == 3 else p for p in pixels]
         interpolation = arrays[0].interpolation if isinstance(arrays[0], _Baked) else arrays[0].texture.interpolation
+        coordinates = {_coordinates_of(array) for array in arrays}
+        if len(coordinates) > 1:
+            self.warnings.warn(f"{self.owner}: '{node.name}' combines textures laid out in UV and in Generated "
+                               "coordinates: baked in the first one's")
         result = np.broadcast_to(operation(*pixels), shape)
-        return _Baked(np.ascontiguousarray(result, dtype=np.float32), interpolation)
+        return _Baked(np.ascontiguousarray(result, dtype=np.float32), interpolation, _coordinates_of(arrays[0]))
 
     def _pixels(self, value) -> np.ndarray:
         if isinstance(value, _Baked):
@@ -284,6 +332,14 @@ class ValueReader:
         self.warnings.warn(f"{self.owner}: '{node.name}' ({node.bl_label}) cannot be applied to a procedural "
                            "texture here: its first input is passed on")
         return None
+
+
+def _coordinates_of(array) -> str:
+    return array.coordinates if isinstance(array, _Baked) else array.texture.coordinates
+
+
+def _grey_checker(checker: Checker) -> Checker:
+    return dataclasses.replace(checker, color1=_grey(checker.color1), color2=_grey(checker.color2))
 
 
 def _grey(colour) -> tuple:
@@ -298,12 +354,13 @@ def _clip(value, clamp: bool):
 def _as_float(value, reader: ValueReader):
     """A number (or a single-level pixel array, repeated in 3 channels) from any value."""
     if isinstance(value, Checker):
-        return Checker(_grey(value.color1), _grey(value.color2), value.scale)
+        return _grey_checker(value)
     if _is_array(value):
         pixels = reader._pixels(value)
         level = pixels @ LUMINANCE
         interpolation = value.interpolation if isinstance(value, _Baked) else value.texture.interpolation
-        return _Baked(np.repeat(level[..., None], 3, axis=2).astype(np.float32), interpolation)
+        return _Baked(np.repeat(level[..., None], 3, axis=2).astype(np.float32), interpolation,
+                      _coordinates_of(value))
     array = np.asarray(value, dtype=np.float64)
     return float(array @ LUMINANCE) if array.ndim else float(array)
 
@@ -329,6 +386,9 @@ def _socket_default(socket):
         return np.asarray(value[:3], dtype=np.float64)
     return float(value)
 
+
+#: Procedural textures whose outputs average 0.5 over space (Perlin noise and the wave's sine around 0.5).
+_HALF_MEAN = ("ShaderNodeTexNoise", "ShaderNodeTexWave")
 
 _HANDLERS = {
     "ShaderNodeTexImage": ValueReader._image,

@@ -6,6 +6,8 @@ radiance, checked against Cycles to 0.5 %).  Blender's scattering skies
 (Nishita) are brighter by a roughly constant factor, measured against Cycles
 5.0 at sun elevations of 10°, 30° and 60° (spread ±5 %): those factors keep a
 scene's exposure; the sky's colour and angular falloff are Hosek–Wilkie's.
+Blender 4.x calls the single-scattering sky ``NISHITA`` and its aerosol
+density ``dust_density`` (renamed in 5.0): both names are read.
 """
 from __future__ import annotations
 
@@ -17,8 +19,9 @@ from ....mitsuba_bridge.scene import ConstantWorld, EnvironmentWorld, SkyWorld
 from .materials import linked_node
 from .report import Warnings
 from .textures import MISSING, gather_image
+from .volumes import gather_volume
 
-__all__ = ["gather_world", "sky_from_node", "SKY_SCALES"]
+__all__ = ["gather_world", "gather_world_volume", "sky_from_node", "SKY_SCALES"]
 
 #: sky type → (sky radiance, sun radiance) of Blender's model relative to Mitsuba's sunsky.
 SKY_SCALES = {
@@ -27,6 +30,8 @@ SKY_SCALES = {
     "HOSEK_WILKIE": (1.0, 0.0),   # no sun disc in Blender's Hosek-Wilkie
     "PREETHAM": (7.4, 0.0),       # measured at 30° only
 }
+#: Blender 4.x's name of the single-scattering sky (5.0 renamed it; `make test-blender` compares it with Cycles 4.x).
+SKY_SCALES["NISHITA"] = SKY_SCALES["SINGLE_SCATTERING"]
 
 
 def sun_direction(elevation: float, rotation: float) -> tuple[float, float, float]:
@@ -46,8 +51,9 @@ def sky_from_node(node, strength: float, warnings: Warnings) -> SkyWorld:
             warnings.warn("the Preetham sky is rendered with the Hosek-Wilkie model, scaled to similar brightness")
     else:
         direction = sun_direction(float(node.sun_elevation), float(node.sun_rotation))
-        # Dust density 1 (clear day) ~ turbidity 3, 5 (city) and more ~ 10.
-        turbidity = float(np.clip(1.0 + 2.0 * node.aerosol_density, 1.0, 10.0))
+        # Dust density 1 (clear day) ~ turbidity 3, 5 (city) and more ~ 10.  Blender 4.x: dust_density.
+        aerosols = node.aerosol_density if hasattr(node, "aerosol_density") else node.dust_density
+        turbidity = float(np.clip(1.0 + 2.0 * aerosols, 1.0, 10.0))
         albedo, aperture = 0.3, math.degrees(float(node.sun_size))
         sun_scale *= float(node.sun_intensity) if node.sun_disc else 0.0
         if abs(node.altitude) > 1e3 or abs(node.ozone_density - 1.0) > 1e-3:
@@ -118,3 +124,13 @@ def gather_world(world, warnings: Warnings):
                   "its own colour is used")
     colour = tuple(float(c) * strength for c in background.inputs["Color"].default_value[:3])
     return ConstantWorld(colour) if any(c > 0 for c in colour) else None
+
+
+def gather_world_volume(world, warnings: Warnings):
+    """The world's volume (its output's Volume), filling the space around everything, or None."""
+    tree = world.node_tree if world is not None else None
+    output = tree.get_output_node("CYCLES") if tree is not None else None
+    if output is None or "Volume" not in output.inputs:
+        return None
+    volume = gather_volume(output.inputs["Volume"], warnings, "world")
+    return None if volume is None or volume.empty else volume

@@ -130,13 +130,13 @@ def test_cuda_is_tried_first_and_an_old_llvm_does_not_matter_then(monkeypatch):
 
 @pytest.mark.parametrize("platform, expected", [
     ("linux", "apt install libllvm19"),
-    ("darwin", "brew install llvm"),
-    ("win32", "LLVM-C.dll"),
+    ("darwin", "'brew install llvm'"),
+    ("win32", "'winget install --id LLVM.LLVM --exact'"),
 ])
 def test_the_install_hint_names_the_fix_for_each_platform(platform, expected):
     hint = llvm_library.install_hint(platform)
     assert expected in hint
-    assert "DRJIT_LIBLLVM_PATH" in hint and "restart Blender" in hint and "CUDA" in hint
+    assert "DRJIT_LIBLLVM_PATH" in hint and "restart Blender" in hint and "CUDA" in hint and "Metal" in hint
 
 
 def manifest_llvm_wheel() -> Path:
@@ -288,3 +288,84 @@ def test_the_llvm_extra_pins_the_wheel_the_extension_bundles():
     extra = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["optional-dependencies"]["llvm"]
     version = LLVM_WHEEL.name.split("-")[1]
     assert extra == [f"karellen-llvm-core=={version}; sys_platform == 'linux' and platform_machine == 'x86_64'"]
+
+
+#: Register the add-on and press F12 with the bundled LLVM, then compare the environment with what it was.
+REGISTER_AND_RENDER = """
+import os, subprocess, sys
+import bpy
+before = dict(os.environ)
+import scratch_iridescence
+scratch_iridescence.register()
+scene = bpy.context.scene
+scene.render.engine = "MITSUBA_SCRATCH"
+scene.render.resolution_x, scene.render.resolution_y = 16, 12
+scene.scratch_iridescence.samples = 1
+scene.render.filepath = os.path.join(os.getcwd(), "frame.png")
+bpy.ops.render.render(write_still=True)
+import drjit as dr
+print("LLVM", dr.detail.llvm_version())
+print("CHANGED", sorted(key for key in set(before) | set(os.environ) if before.get(key) != os.environ.get(key)))
+child = subprocess.run([sys.executable, "-c", "import os; print(os.environ.get('DRJIT_LIBLLVM_PATH'))"],
+                       capture_output=True, text=True)
+print("CHILD SEES", child.stdout.strip())
+"""
+
+
+@needs_llvm_wheel
+def test_the_bundled_llvm_leaves_the_process_environment_as_it_was(tmp_path, system_with_only_llvm15,
+                                                                   blender_site_packages):
+    # Dr.Jit reads DRJIT_LIBLLVM_PATH during `import drjit` only: the variable exists for that import and no longer,
+    # so neither another add-on nor a child process of Blender's inherits it.
+    pytest.importorskip("bpy")
+    result = run_python(REGISTER_AND_RENDER, tmp_path, None, PYTHONPATH=str(blender_site_packages),
+                        **system_with_only_llvm15)
+    log = result.stdout + result.stderr
+    assert result.returncode == 0, log
+    assert f"LLVM ({LLVM_WHEEL.name.split('-')[1].split('.')[0]}," in result.stdout, log  # the bundled one rendered
+    assert "CHANGED []" in result.stdout, log
+    assert "CHILD SEES None" in result.stdout, log
+
+
+def test_the_environment_variable_is_set_for_the_import_only(monkeypatch):
+    monkeypatch.delenv(llvm_library.ENV_VAR, raising=False)
+    seen = []
+    with llvm_library._environment_variable(llvm_library.ENV_VAR, "/lib/libLLVM.so.19"):
+        seen.append(os.environ.get(llvm_library.ENV_VAR))
+    assert seen == ["/lib/libLLVM.so.19"] and llvm_library.ENV_VAR not in os.environ
+    monkeypatch.setenv(llvm_library.ENV_VAR, "/user/choice.so")
+    with pytest.raises(RuntimeError):
+        with llvm_library._environment_variable(llvm_library.ENV_VAR, "/lib/libLLVM.so.19"):
+            raise RuntimeError("an import that failed")
+    assert os.environ[llvm_library.ENV_VAR] == "/user/choice.so"
+
+
+#: Windows without a bundled library: LLVM's own installation is handed over (simulated: sys.platform and the
+#: installer's path replaced, the machine's libLLVM 19 standing in for LLVM-C.dll; the system offers only 15).
+WINDOWS_INSTALL = """
+import os, sys
+from pathlib import Path
+from scratch_iridescence.mitsuba_bridge.device import llvm_library
+assert 'drjit' not in sys.modules
+llvm_library.WINDOWS_INSTALL = Path(sys.argv[-1])
+real_platform, sys.platform = sys.platform, 'win32'
+print('HANDED', llvm_library.configure())
+sys.platform = real_platform
+import drjit as dr
+print('LLVM', dr.detail.llvm_version(), 'ENV', os.environ.get('DRJIT_LIBLLVM_PATH'))
+"""
+
+
+def test_windows_hands_llvms_own_installation_to_drjit(tmp_path, system_with_only_llvm15):
+    library = next(iter(sorted(glob.glob("/usr/lib/x86_64-linux-gnu/libLLVM.so.1[6-9]*")
+                               + glob.glob("/usr/lib/x86_64-linux-gnu/libLLVM.so.[2-9][0-9]*"))), None)
+    if library is None:
+        pytest.skip("no libLLVM >= 16 of Debian's to stand in for LLVM-C.dll")
+    result = subprocess.run([sys.executable, "-c", WINDOWS_INSTALL, library], capture_output=True, text=True,
+                            cwd=tmp_path, timeout=300,
+                            env={**{k: v for k, v in os.environ.items() if k != llvm_library.ENV_VAR},
+                                 **system_with_only_llvm15, "DRJIT_CACHE_DIR": str(tmp_path / "cache")})
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert f"HANDED {library}" in result.stdout
+    major = library.split(".so.")[1].split(".")[0]
+    assert f"LLVM ({major}," in result.stdout and "ENV None" in result.stdout, result.stdout
