@@ -29,7 +29,7 @@ from ..heightfield.triples import add_triples
 from ..lookup import for_each_crossing, for_each_segment, replay_pieces, segment_at
 from ..maths.complexmath import Cx
 from ..maths.segment import SegmentGeometry, amplitude
-from ..model import FIND, REPLAY_PIECES, WINDOW_RADIUS_SIGMAS, Model
+from ..model import FIND, REPLAY_PIECES, WINDOW_RADIUS_SIGMAS, Model, reservoir_step
 from ..periodic import MAX_INCOHERENT_WIDTH_SIGMAS, family_intensity, find_family
 from .families import family_energy, family_terms
 from .along import _pick
@@ -289,26 +289,6 @@ class FilteredModel(Model):
             c_a, c_b = a + c_re, b + c_im
         return Cx(c_a, c_b).abs2() - Cx(a, b).abs2()
 
-    def _value_of_intensity(self, si, wo, inv_wavelength, intensity, has_glossy, has_diffuse, active):
-        """f_r cos θ_o from the (footprint-averaged) intensity: :meth:`..model.Model._value`'s last steps."""
-        sigma = self.sigma
-        value = dr.zeros(mi.Spectrum)
-        if has_glossy:
-            inv_window_area = dr.rcp(math.pi * sigma * sigma)
-
-            def reflected(intensity):
-                half = dr.normalize(si.wi + wo)
-                fresnel = self._reflectance(si, dr.dot(si.wi, half), active)
-                return fresnel * intensity * (dr.square(inv_wavelength) * inv_window_area)
-
-            lit = active & (dr.max(intensity) > 0.0)
-            value = dr.if_stmt((intensity,), lit, reflected, lambda intensity: dr.zeros(mi.Spectrum),
-                               label="scratch_filtered_fresnel")
-        if has_diffuse and self.diffuse is not None:
-            value = value + self.diffuse.eval(si, active) * (1.0 / math.pi)
-        value = dr.select(active, value * wo.z, 0.0)
-        return dr.select(dr.isfinite(value), value, 0.0)
-
     # ----------------------------------------------------------- sampling
     def sample(self, si, sample1, sample2, *, has_glossy=True, has_diffuse=True, active=True, search=None):
         """:meth:`..model.Model.sample` with the pieces of the footprint drawn by their averaged weights."""
@@ -332,16 +312,9 @@ class FilteredModel(Model):
         kz0 = (4.0 * math.pi) * wi.z * dr.rcp(lam0)
 
         def body(segment, piece, state):
-            energy, chosen, u, count, kept = state
             weight = filtered_window_energy(segment, footprint, sigma) \
                 * sampling.groove_energy(segment.triangular, kz0 * segment.depth, self.coherent)
-            energy = energy + weight
-            p = dr.select(energy > 0.0, weight / energy, 0.0)
-            pick = u < p
-            chosen = dr.select(pick, piece, chosen)
-            u = dr.select(pick, u / dr.maximum(p, 1e-30), (u - p) / dr.maximum(1.0 - p, 1e-30))
-            kept = tuple(dr.select(count == k, piece, kept[k]) for k in range(REPLAY_PIECES))
-            return energy, chosen, dr.clip(u, 0.0, 0.99999994), count + 1, kept
+            return reservoir_step(weight, piece, state, REPLAY_PIECES)
 
         scanning = active & has_glossy
         radius = self._reach(footprint)
@@ -360,29 +333,9 @@ class FilteredModel(Model):
             state = replay_pieces(self.grid, jac, found_count, found_pieces, state, body, replaying)
         energy, chosen, u, count, kept = for_each_segment(self.grid, jac, radius, state, body, scanning)
 
-        q_d, q_s, q_m = self._strategy_weights(si, energy, wi.z, has_glossy, has_diffuse, active)
-        diffuse = active & (u < q_d)
-        scratch = active & ~diffuse & (u < q_d + q_s)
-
-        def scratch_line(mirror_x, mirror_y):
-            segment = segment_at(self.grid, jac, chosen, scratch & ~family.eligible if family is not None else scratch)
-            if family is not None:  # its tracks' line, as the density of evaluate() has it
-                segment = SegmentGeometry(*(dr.select(family.eligible, mine, theirs)
-                                            for mine, theirs in zip(self._family_line(family), segment)))
-            lo, hi = self._band(segment, wi, lam0)
-            nu_par = sampling.sample_along(sample2.x, sigma)
-            nu_perp = sampling.sample_across(sample2.y, segment, kz0 * segment.depth, lo, hi)
-            return nu_par * segment.dx - nu_perp * segment.dy, nu_par * segment.dy + nu_perp * segment.dx
-
-        mirror_x, mirror_y = sampling.sample_mirror(sample2, sigma)
-        xi_x, xi_y = dr.if_stmt((mirror_x, mirror_y), scratch, scratch_line, lambda x, y: (x, y),
-                                label="scratch_filtered_line_sample")
-        out_x = lam0 * xi_x - wi.x
-        out_y = lam0 * xi_y - wi.y
-        sin2 = out_x * out_x + out_y * out_y
-        specular = mi.Vector3f(out_x, out_y, dr.safe_sqrt(1.0 - sin2))
-        wo = dr.select(diffuse, mi.warp.square_to_cosine_hemisphere(sample2), specular)
-        active &= diffuse | (sin2 < 1.0)
+        wo, diffuse, active = self._draw_direction(
+            si, jac, chosen, energy, u, sample2, lam0, kz0, has_glossy, has_diffuse, active, family,
+            (lambda: self._family_line(family)) if family is not None else None, "scratch_filtered_line_sample")
         value, pdf, _ = self._evaluate_filtered(si, wo, footprint, has_glossy=has_glossy, has_diffuse=has_diffuse,
                                                 want_value=True, want_pdf=True, active=active,
                                                 found=(count, kept), keep_search=False)
