@@ -135,11 +135,11 @@ def render_chunks(scene, chunks: Iterable[Chunk], spp_total: int, *, freeze: boo
     from ..device.variants import on_gpu
 
     chunks = list(chunks)
-    # the footprint filter's size follows the whole render's samples, never a chunk's (docs/model.md §11.2)
-    set_footprint(scene, spp_total if render_spp is None else render_spp)
     indices = [chunk.index for chunk in chunks]
     if indices and indices != list(range(indices[0], indices[0] + len(indices))):
         raise ValueError("render_chunks needs consecutive chunks of one schedule (the sums follow their indices)")
+    # the footprint filter's size follows the whole render's samples, never a chunk's (docs/model.md §11.2)
+    set_footprint(scene, spp_total if render_spp is None else render_spp)
     if overlap is None:
         overlap = on_gpu()
     passes = FrozenRender(enabled=freeze)
