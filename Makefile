@@ -14,7 +14,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 PYTEST := $(PY) -m pytest
 
-.PHONY: setup llvm llvm-wheel llvm15-for-tests test test-slow test-stress test-blender demo paper extension bench clean help
+.PHONY: setup llvm llvm-wheel node llvm15-for-tests test test-slow test-stress test-blender demo paper extension bench clean help
 
 help:
 	@echo "make demo       render the bundled demo scene to out/"
@@ -26,7 +26,7 @@ help:
 	@echo "make bench      run the benchmarks in tests/bench"
 	@echo "make extension  build the extension zips (one per platform and Blender Python, wheels bundled) into dist/"
 
-setup: $(STAMP) llvm llvm-wheel
+setup: $(STAMP) llvm llvm-wheel node
 
 $(STAMP): pyproject.toml
 	@version=$$($(PYTHON) -c 'import sys; print("%d.%d" % sys.version_info[:2])'); \
@@ -53,6 +53,16 @@ llvm:
 # install it the way Blender does and render with it while the system offers only LLVM 15.
 llvm-wheel: $(STAMP)
 	@if [ "$$(uname -s)-$$(uname -m)" = "Linux-x86_64" ]; then $(PY) .ci/build_extension.py --download-only karellen_llvm_core; fi
+
+# The Flamenco job type's test compiles it with node (tests/farm/test_flamenco.py): Debian's nodejs where apt can,
+# else that test skips with the reason.
+node:
+	@if ! command -v node >/dev/null && command -v apt-get >/dev/null; then \
+	    echo "installing Debian's nodejs for the Flamenco job type's test"; \
+	    sudo=""; [ "$$(id -u)" -eq 0 ] || sudo="sudo"; \
+	    { $$sudo apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$sudo apt-get install -y -qq nodejs; } \
+	    || echo "nodejs could not be installed: the Flamenco job type's test will be skipped"; \
+	fi
 
 # The LLVM-15 simulation tests (an old libLLVM must be refused, never abort) need a real libLLVM 15.
 # Debian 12 images ship it; elsewhere it is installed when apt can, else those tests skip with the reason.

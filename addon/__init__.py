@@ -39,6 +39,7 @@ def _modules():
 
 def register():
     """Register every class of the add-on."""
+    _use_extension_folder(True)
     for module in _modules():
         module.register()
 
@@ -47,3 +48,25 @@ def unregister():
     """Unregister in reverse order."""
     for module in reversed(_modules()):
         module.unregister()
+    _use_extension_folder(False)
+
+
+def _use_extension_folder(use: bool) -> None:
+    """Keep the scratch tables cache in the extension's user folder, Blender's place for an extension's data.
+
+    Set for the bridge explicitly (it never imports ``bpy``; the process
+    environment, which Blender shares with every add-on, is left alone):
+    ``SCRATCH_IRIDESCENCE_CACHE_DIR`` still wins, and an add-on that is not
+    installed as an extension (a source checkout) keeps the platform's cache folder.
+    """
+    import bpy
+
+    from ..mitsuba_bridge.bsdf.tables import disk_cache
+
+    folder = None
+    if use:
+        try:
+            folder = bpy.utils.extension_path_user(__package__.rpartition(".")[0], create=True)
+        except (ValueError, OSError):  # not an extension (bl_ext.<repository>.<id>), or no user folder
+            folder = None
+    disk_cache.set_root(folder)

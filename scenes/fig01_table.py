@@ -102,20 +102,25 @@ def window_environment(width: int = 1024, height: int = 512) -> np.ndarray:
     return np.where((window & ~mullion)[..., None], sky, room).astype(np.float32)
 
 
-def _lamp_position():
-    """Where the pendant lamp hangs (``LAMP_HEIGHT_M`` above the table) for its reflection to fall at
-    ``LAMP_REFLECTION`` as the camera sees it."""
-    camera = np.array(CAMERA)
-    reflection = np.array([*LAMP_REFLECTION, 0.0])
+def _lamp_position(camera=CAMERA, lamp_reflection=LAMP_REFLECTION, lamp_height_m=LAMP_HEIGHT_M):
+    """Where the pendant lamp hangs (``lamp_height_m`` above the table) for its reflection to fall at
+    ``lamp_reflection`` as the ``camera`` sees it."""
+    camera = np.array(camera)
+    reflection = np.array([*lamp_reflection, 0.0])
     ray = reflection - camera
     mirrored = np.array([ray[0], ray[1], -ray[2]])
-    return tuple(reflection + mirrored * (LAMP_HEIGHT_M / mirrored[2]))
+    return tuple(reflection + mirrored * (lamp_height_m / mirrored[2]))
 
 
 def build_scene(scene, *, resolution=(960, 600), samples: int = 384, scale: float = 1.0, seed: int = 1,
-                crossings: str = "additive", depth_phase: str = "kirchhoff"):
+                crossings: str = "additive", depth_phase: str = "kirchhoff", depth_variation=(0.0, 0.0),
+                camera=CAMERA, camera_target=CAMERA_TARGET, lens_mm: float = 30.0, lamp_reflection=LAMP_REFLECTION,
+                lamp_height_m: float = LAMP_HEIGHT_M, exposure: float = EXPOSURE):
     """The table, plates, lamp and room; returns the table top. ``scale`` < 1 scratches less (tests);
-    ``crossings`` and ``depth_phase``: the top's scratch rendering options (docs/bsdf.md)."""
+    ``crossings`` and ``depth_phase``: the top's scratch rendering options (docs/bsdf.md);
+    ``depth_variation``: (amplitude, frequency) of every scratch's depth noise (the paper's D[1.1, 0.04]
+    in Figs. 6 and 11; none in Fig. 1); the camera and the lamp's reflection (``scenes/fig11_table.py``
+    moves them), the defaults Fig. 1's."""
     import bpy
 
     from . import staging
@@ -124,15 +129,18 @@ def build_scene(scene, *, resolution=(960, 600), samples: int = 384, scale: floa
 
     top = staging.metal_plate("Table top", TABLE_M, metal="Al", height_m=0.0)
     top.scratch_iridescence.crossings, top.scratch_iridescence.depth_phase = crossings, depth_phase
+    looks = dict(LOOKS)
+    if depth_variation[0] > 0:
+        looks.update(depth_variation_amplitude=depth_variation[0], depth_variation_frequency=depth_variation[1])
     for index, (kind, points, settings) in enumerate(painted_strokes(np.random.default_rng(seed))):
         if kind == "SPRAY":
             settings = {**settings, "density": settings["density"] * scale}
         staging.operator(bpy.ops.scratch.paint_stroke, top, stroke=staging.stroke(points), brush_mode=kind,
-                         seed=seed + index, **LOOKS, **settings)
+                         seed=seed + index, **looks, **settings)
     # General wear everywhere else: as many random scratches as make the total the paper's 300 000.
     painted = storage.scratch_summary(top)["count"]
     staging.operator(bpy.ops.scratch.generate, top, count=max(1, round(TOTAL_SCRATCHES * scale) - painted),
-                     seed=seed, mode="ADD", length_min=0.005, length_max=0.03, **LOOKS)
+                     seed=seed, mode="ADD", length_min=0.005, length_max=0.03, **looks)
 
     porcelain = staging.material("Porcelain", (0.85, 0.85, 0.82), roughness=0.15)
     for index, (x, y) in enumerate(PLATES):
@@ -141,9 +149,9 @@ def build_scene(scene, *, resolution=(960, 600), samples: int = 384, scale: floa
         plate.name = f"Plate {index + 1}"
         plate.data.materials.append(porcelain)
 
-    staging.point_light(scene, "Pendant lamp", _lamp_position(), power_w=60.0, radius=0.01,
-                        colour=(1.0, 0.85, 0.65))
+    staging.point_light(scene, "Pendant lamp", _lamp_position(camera, lamp_reflection, lamp_height_m), power_w=60.0,
+                        radius=0.01, colour=(1.0, 0.85, 0.65))
     staging.environment_world(scene, "Room with window", window_environment())
-    staging.camera(scene, CAMERA, CAMERA_TARGET, lens_mm=30.0)
-    staging.render_settings(scene, resolution=resolution, samples=samples, max_depth=3, exposure=EXPOSURE)
+    staging.camera(scene, camera, camera_target, lens_mm=lens_mm)
+    staging.render_settings(scene, resolution=resolution, samples=samples, max_depth=3, exposure=exposure)
     return top

@@ -87,27 +87,14 @@ def build_scene(scene, *, coherent: bool = True, resolution=(720, 540), samples:
     ``track_radii_m`` narrows the program area (tests); ``workdir`` is where the
     track file is written before it is imported (a temporary folder by default).
     """
-    import tempfile
-
-    import bpy
-
-    from ..mitsuba_bridge import scratch
     from . import staging
 
     metal = staging.material("CD aluminium", (0.91, 0.92, 0.92), roughness=0.05, metallic=1.0)
     cd = staging.disc("CD", DISC_RADIUS_M, (0.0, 0.0, 0.0012), metal, hole=METAL_INNER_M)
     cd.scratch_iridescence.base_material = "Al"
     cd.scratch_iridescence.coherent = coherent
-    with tempfile.TemporaryDirectory() as temporary:
-        path = Path(workdir or temporary) / "cd_tracks.npz"
-        path.parent.mkdir(parents=True, exist_ok=True)
-        scratch.save(cd_tracks(track_radii_m), path)
-        staging.operator(bpy.ops.scratch.import_file, cd, filepath=str(path), mode="REPLACE")
-
-    hub = staging.material("Polycarbonate hub", (0.6, 0.62, 0.65), roughness=0.25)
-    staging.disc("CD hub", METAL_INNER_M, (0.0, 0.0, 0.0012), hub, vertices=128, hole=HOLE_RADIUS_M)
-    cloth = staging.material("Dark cloth", (0.02, 0.02, 0.025), roughness=1.0)
-    staging.plane("Cloth", 1.0, (0.0, 0.0, 0.0), cloth)
+    staging.import_scratches(cd, cd_tracks(track_radii_m), "cd_tracks.npz", workdir)
+    staging.cd_surroundings(METAL_INNER_M, HOLE_RADIUS_M, 0.0012)
 
     staging.area_light(scene, "Strip light", (0.0, 0.10, 0.12), (0.0, 0.0, 0.0), power_w=STRIP_POWER_W,
                        size=STRIP_SIZE_M)

@@ -8,11 +8,16 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-__all__ = ["Figure", "Render", "PAPER_SPP", "PAPER_CORES", "paper_samples_per_core_second"]
+__all__ = ["Figure", "Render", "PAPER_SPP", "PAPER_CORES", "PAPER_WAVELENGTHS", "OUR_WAVELENGTHS",
+           "paper_samples_per_core_second"]
 
 #: The supplement's render settings: 4 MP at 16 384 samples per pixel on 72 cores, unless noted.
 PAPER_SPP = 16384
 PAPER_CORES = 72
+#: Wavelengths per sample: the supplement's N_λ (16 unless noted: 3 for Fig. 12), and ours (hero wavelength
+#: sampling traces 4 per path, docs/model.md §6).
+PAPER_WAVELENGTHS = 16
+OUR_WAVELENGTHS = 4
 
 
 def paper_samples_per_core_second(megapixels: float, minutes: float) -> float:
@@ -24,8 +29,8 @@ def paper_samples_per_core_second(megapixels: float, minutes: float) -> float:
 class Render:
     """One picture: ``build_scene`` keyword arguments and the settings ``make paper`` renders it with.
 
-    ``paper_minutes`` and ``paper_megapixels`` are the supplement's time and
-    resolution for the picture this one reproduces.
+    ``paper_minutes``, ``paper_megapixels`` and ``paper_wavelengths`` are the
+    supplement's time, resolution and N_λ for the picture this one reproduces.
     """
 
     name: str
@@ -35,6 +40,7 @@ class Render:
     samples: int = 256
     paper_minutes: float = 0.0
     paper_megapixels: float = 4.0
+    paper_wavelengths: int = PAPER_WAVELENGTHS
 
     @property
     def paper_samples_per_core_second(self) -> float | None:
@@ -42,6 +48,12 @@ class Render:
         if not self.paper_minutes:
             return None
         return paper_samples_per_core_second(self.paper_megapixels, self.paper_minutes)
+
+    @property
+    def wavelength_factor(self) -> float:
+        """Our wavelengths per sample over the paper's: a samples-per-core-second ratio times this compares
+        wavelength samples (1/4 for the paper's 16, 4/3 for Fig. 12's 3)."""
+        return OUR_WAVELENGTHS / self.paper_wavelengths
 
 
 @dataclass(frozen=True)

@@ -13,9 +13,9 @@ import shutil
 import time
 from pathlib import Path
 
-from .figure import PAPER_CORES, PAPER_SPP
+from .figure import PAPER_CORES, PAPER_SPP, PAPER_WAVELENGTHS
 
-__all__ = ["write", "load_records", "load_reference", "benchmark_rows"]
+__all__ = ["write", "load_records", "load_reference", "benchmark_rows", "rate"]
 
 GALLERY_DIR = "gallery"
 
@@ -47,6 +47,20 @@ def _machine() -> str:
     return f"{cores} cores ({cpu})"
 
 
+def rate(value: float | None) -> str:
+    """A samples-per-core-second figure as the benchmark table prints it ("—": not measurable)."""
+    return "—" if value is None else f"{value:.3g}"
+
+
+def _settings(record: dict, render) -> str:
+    """"W × H × spp", and make paper's own settings where a run scaled them down (--scale, --samples-scale)."""
+    shown = f"{record['width']} × {record['height']} × {record['spp']}"
+    if (record['width'], record['height'], record['spp']) != (*render.resolution, render.samples) and \
+            (record.get("samples_scale", 1.0) != 1.0 or record.get("resolution_scale", 1.0) != 1.0):
+        shown += f" (make paper: {render.resolution[0]} × {render.resolution[1]} × {render.samples})"
+    return shown
+
+
 def benchmark_rows(figures, records: dict) -> list[dict]:
     """One row per rendered picture: throughput here and in the paper, memory, load time."""
     rows = []
@@ -61,17 +75,27 @@ def benchmark_rows(figures, records: dict) -> list[dict]:
             setup_s = max(record["render_s"] - passes_s, 0.0)  # gather, scratch tables, first compile
             rows.append({
                 "name": name, "label": f"{figure.label} {render.name}", "samples": samples, "spp": record["spp"],
-                "pixels": f"{record['width']} × {record['height']} × {record['spp']}",
+                "pixels": _settings(record, render),
                 "render_s": record["render_s"], "passes_s": passes_s, "cpu_s": record["render_cpu_s"],
                 "per_core_s": samples / record["render_cpu_s"],
                 # Setup is mostly single-threaded: charge it one core, the rest to the passes.
-                "passes_per_core_s": samples / max(record["render_cpu_s"] - setup_s, 1e-9),
+                # (None where the set-up's wall time reaches half the render's CPU time: on a shared machine
+                # the set-up did not have a core to itself, and its wall time says nothing of its CPU)
+                "passes_per_core_s": samples / (record["render_cpu_s"] - setup_s)
+                if setup_s < 0.5 * record["render_cpu_s"] else None,
                 "paper_minutes": render.paper_minutes, "paper_mp": render.paper_megapixels,
                 "paper_per_core_s": render.paper_samples_per_core_second,
+                "paper_wavelengths": render.paper_wavelengths, "wavelength_factor": render.wavelength_factor,
+                # spp and seconds at which the footprint-filtered BSDF reaches this picture's noise (None: not
+                # measured yet; the filter is being built)
+                "filtered": record.get("filtered_same_noise"),
                 "peak_mb": record["peak_mb"], "load_s": record["scratch_load_s"],
                 "tables_read": record.get("tables_read"), "tables_built": record.get("tables_built"),
                 "scratches": record["scratches"], "segments": record["segments"],
                 "build_s": record["build_s"], "total_s": record["total_s"],
+                # the same picture at make paper's own settings: the passes scale with pixels × spp
+                "full_settings_s": record["total_s"] + passes_s * (
+                    render.resolution[0] * render.resolution[1] * render.samples / samples - 1.0),
                 # the machine reference of the run that rendered this picture (None before they were kept)
                 "reference": record.get("reference"),
                 "traced": record.get("traced"),  # the engine's note when its passes could not be frozen
@@ -109,9 +133,11 @@ def _figure_section(module, figure, records: dict) -> list[str]:
               "|---|---|---|---|"]
     for render, record in done:
         paper_res = "4 MP" if render.paper_megapixels == 4.0 else f"{render.paper_megapixels:g} MP"
-        paper = f"{render.paper_minutes:g} min at {paper_res} × {PAPER_SPP} spp" if render.paper_minutes else \
-            "— (beyond the paper)"
-        lines.append(f"| {render.name} | {record['width']} × {record['height']} × {record['spp']} | "
+        wavelengths = "" if render.paper_wavelengths == PAPER_WAVELENGTHS else \
+            f", {render.paper_wavelengths} wavelengths per sample"
+        paper = f"{render.paper_minutes:g} min at {paper_res} × {PAPER_SPP} spp{wavelengths}" \
+            if render.paper_minutes else "— (beyond the paper)"
+        lines.append(f"| {render.name} | {_settings(record, render)} | "
                      f"{record['build_s']:.1f} s + {record['render_s']:.0f} s | {paper} |")
     return lines + [""]
 
@@ -178,6 +204,11 @@ def _gallery(figures, records: dict, validation: dict | None) -> str:
     render_total = sum(r["total_s"] for r in rows)
     # The pictures may come from several runs (--only): add up what each took, not this run's wall time.
     total_s = render_total + (validation or {}).get("seconds", 0.0)
+    scaled = [r for r in rows if abs(r["full_settings_s"] - r["total_s"]) > 1e-9]
+    scaled_note = "" if not scaled else (
+        f" {len(scaled)} of the pictures were rendered below make paper's settings (their tables say which); "
+        f"at its own settings (their passes scaled by pixels × spp) the page would take about "
+        f"{_minutes(total_s + sum(r['full_settings_s'] - r['total_s'] for r in scaled))}.")
     lines = ["# Gallery: the paper's scenes, reproduced", "",
              "Werner, Velinov, Jakob, Hullin: *Scratch iridescence: Wave-optical rendering of diffractive "
              "surface structure* (SIGGRAPH Asia 2017). Every scene below is built in code by a module of "
@@ -189,10 +220,10 @@ def _gallery(figures, records: dict, validation: dict | None) -> str:
              "scene shows the same effect. Our renders are far cheaper than the paper's (4 MP × 16 384 spp on 72 "
              "cores): "
              f"{_machine()}, {_minutes(total_s)} for this whole page ({_minutes(render_total)} of it building and "
-             "rendering the pictures), so resolution and samples are a small fraction of the paper's and the "
-             "pictures keep some Monte Carlo noise. Pictures are display-referred PNGs (Blender's Standard view "
-             "with each scene's exposure: AgX would wash the diffraction colours out); the linear EXRs are in "
-             "`out/paper/`.", "",
+             f"rendering the pictures), so resolution and samples are a small fraction of the paper's and the "
+             f"pictures keep some Monte Carlo noise.{scaled_note} Pictures are display-referred PNGs "
+             "(Blender's Standard view with each scene's exposure: AgX would wash the diffraction colours out); "
+             "the linear EXRs are in `out/paper/`.", "",
              "| figure | scratches | pictures | time here | paper |", "|---|---|---|---|---|"]
     for module, figure in figures:
         mine = [r for r in rows if r["name"].startswith(module.__name__.rsplit(".", 1)[-1] + "-")]
@@ -200,7 +231,7 @@ def _gallery(figures, records: dict, validation: dict | None) -> str:
             continue
         lines.append(f"| [{figure.label}](#{_anchor(figure)}) {figure.title} | {mine[0]['scratches']:,} "
                      f"({mine[0]['segments']:,} segments) | {len(mine)} | "
-                     f"{_minutes(sum(r['total_s'] for r in mine))} | "
+                     f"{_minutes(sum(r['total_s'] for r in mine))}{_full_settings(mine)} | "
                      + " / ".join(f"{r['paper_minutes']:g}" for r in mine if r["paper_minutes"]) + " min |")
     lines.append("")
     for module, figure in figures:
@@ -216,6 +247,14 @@ def _gallery(figures, records: dict, validation: dict | None) -> str:
               "Blender with the scratches, lights and camera) and rendered in a fresh one, as "
               "`blender -b out/paper/<picture>.blend -E MITSUBA_SCRATCH -f 1` would.", ""]
     return "\n".join(lines)
+
+
+def _full_settings(rows: list[dict]) -> str:
+    """" (about N at make paper's settings)" for a figure rendered below them, else ""."""
+    full_s = sum(r["full_settings_s"] for r in rows)
+    if abs(full_s - sum(r["total_s"] for r in rows)) < 1e-9:
+        return ""
+    return f" (about {_minutes(full_s)} at make paper's settings)"
 
 
 def _anchor(figure) -> str:
@@ -239,6 +278,13 @@ def _tables_source(row: dict) -> str:
     if read and not built:
         return "read"
     return "built" if not read else "built and read"
+
+
+def _filtered(measured: dict | None) -> str:
+    """The footprint-filtered BSDF's spp for this picture's noise and its render time, or "—" (not measured)."""
+    if not measured:
+        return "—"
+    return f"{measured['spp']} spp ({_minutes(measured['render_s'])})"
 
 
 def _reference_lines(rows: list[dict]) -> list[str]:
@@ -269,50 +315,63 @@ def _benchmarks(figures, records: dict) -> str:
              "(`bpy.ops.render.render`), CPU variant `llvm_ad_spectral`.", "",
              "**Samples per core-second** = pixels × spp / CPU seconds of the render call. The paper's figure "
              f"comes from the supplement's times on {PAPER_CORES} cores: pixels × {PAPER_SPP} spp / (minutes × 60 "
-             f"× {PAPER_CORES}), 4 MP unless noted. The paper traced 16 wavelengths per sample, we trace 4 per "
-             "path (hero wavelength sampling, docs/model.md §5–6), so one of our samples carries a quarter of the "
-             "spectral information of one of theirs: per wavelength sample, divide the ratio by 4. The render "
+             f"× {PAPER_CORES}), 4 MP unless noted. The paper traced 16 wavelengths per sample (3 for Fig. 12), "
+             "we trace 4 per path (hero wavelength sampling, docs/model.md §5–6), so one of our samples carries a "
+             "quarter of the spectral information of one of theirs (4/3 of one of Fig. 12's): per wavelength "
+             "sample, multiply the ratio by 4/N_λ. The render "
              "call includes gathering the scene, building the scratch tables and compiling the kernels; "
-             "*passes only* charges that set-up (mostly one thread) to one core and counts the rest. Kernels and "
-             "tables come from their caches where an earlier render of the same scene compiled or built them, as "
-             "for any render after a user's first: column *tables* says whether this render built them or read "
+             "*passes only* charges that set-up (mostly one thread) to one core and counts the rest (\"—\" where "
+             "the set-up's wall time reaches half the render's CPU time: on a loaded machine it did not have a "
+             "core). Kernels and tables come from their caches where an earlier render of the same scene "
+             "compiled or built them, as for any render after a user's first: column *tables* says whether this "
+             "render built them or read "
              "them from the disk cache (docs/rendering.md); *scratch set → BSDF* is the build's own time either "
              "way.", "",
-             "**Per wavelength sample** is that ratio divided by 4; the target (issue 12) is at least 2× "
+             "**Per wavelength sample** is that ratio times 4/N_λ (N_λ: the paper's wavelengths per sample, 16 "
+             "unless the *paper* column says otherwise); the target (issue 12) is at least 2× "
              "the paper per core and per wavelength sample on every scene. Renders beyond the paper (options the "
              "paper does not have) have no paper time.", "",
              *_reference_lines(rows),
              "| picture | pixels × spp | render (wall) | of it passes | samples / core-s | passes only | "
              "÷ reference | paper | paper samples / core-s | ratio | per wavelength sample | peak memory | "
-             "scratch set → BSDF | tables | scratches (segments) |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "scratch set → BSDF | tables | scratches (segments) | filtered BSDF: spp for the same noise (time) |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         if r["paper_per_core_s"]:
-            paper = f"{r['paper_minutes']:g} min" + ("" if r["paper_mp"] == 4.0 else f" ({r['paper_mp']:g} MP)")
+            notes = [f"{r['paper_mp']:g} MP"] if r["paper_mp"] != 4.0 else []
+            notes += [f"N_λ = {r['paper_wavelengths']}"] if r["paper_wavelengths"] != PAPER_WAVELENGTHS else []
+            paper = f"{r['paper_minutes']:g} min" + (f" ({', '.join(notes)})" if notes else "")
             ratio = r["per_core_s"] / r["paper_per_core_s"]
             shown = f"{ratio:.0f}" if ratio >= 10 else f"{ratio:.2g}"  # (.2g writes 102 as 1e+02)
-            versus = f"{r['paper_per_core_s']:.3g} | {shown}× | {ratio / 4:.2f}×"
+            versus = f"{r['paper_per_core_s']:.3g} | {shown}× | {ratio * r['wavelength_factor']:.2f}×"
         else:
             paper, versus = "—", "— | — | —"
         relative = f"{r['per_core_s'] / r['reference']['samples_per_core_s']:.3f}" if r["reference"] else "—"
         lines.append(
             f"| {r['label']} | {r['pixels']} | {r['render_s']:.0f} s | {r['passes_s']:.0f} s | "
-            f"{r['per_core_s']:.3g} | {r['passes_per_core_s']:.3g} | "
+            f"{r['per_core_s']:.3g} | {rate(r['passes_per_core_s'])} | "
             f"{relative} | {paper} | {versus} | {r['peak_mb']:,.0f} MB | "
-            f"{r['load_s']:.2f} s | {_tables_source(r)} | {r['scratches']:,} ({r['segments']:,}) |")
+            f"{r['load_s']:.2f} s | {_tables_source(r)} | {r['scratches']:,} ({r['segments']:,}) | "
+            f"{_filtered(r['filtered'])} |")
     traced = [r for r in rows if r["traced"]]
     lines += [""]
     if traced:
         lines.append("* **Traced passes**: " + "; ".join(f"{r['label']}: {r['traced']}" for r in traced) + ". "
                      "These pictures re-traced the integrator and the BSDF for every chunk instead of replaying "
                      "one recording ([rendering.md](rendering.md), Render): the same image, a slower render.")
-    lines += ["* **Peak memory** is the render process's maximum resident set (`ru_maxrss`): Blender (bpy), "
+    lines += ["* **Filtered BSDF: spp for the same noise**: the samples per pixel at which the footprint-filtered "
+              "scratch BSDF (the closed-form expected BSDF over the pixel footprint, built in another branch) "
+              "reaches the noise of the point-sampled picture in this row, and its render time. Not measured "
+              "yet (\"—\"): a run that measures it stores `filtered_same_noise` = {spp, render_s} in the "
+              "picture's statistics (`out/paper/<picture>.json`) and the page shows it.",
+              "* **Peak memory** is the render process's maximum resident set (`ru_maxrss`): Blender (bpy), "
               "Mitsuba and Dr.Jit themselves take about 400 MB of it, the rest is the scene, the scratch tables "
               "and the image.",
               "* **Scratch set → BSDF**: decoding the object's stored scratch file and `mi.load_dict` of the "
               "`scratch_diffraction` plugin with it and the object's settings (the UV grid of segments; the "
               "periodic families of dense sets; the crossing pairs of `crossings = \"height_field\"`), "
-              "timed on its own after the render.",
+              "timed on its own after the render (the disk cache off), once per scratch set and options in a run: "
+              "the pictures of one object share it.",
               "* The CD was the slow case of the model: a query evaluates the ~25 track pieces inside the coherence "
               "window, and finding them costs about twice what evaluating them does. Its tracks now sum in closed "
               "form wherever a window lies among them (periodic families, [model.md](model.md) §3.5; "
@@ -325,9 +384,15 @@ def _benchmarks(figures, records: dict) -> str:
     return "\n".join(lines)
 
 
+#: benchmarks.md keeps what follows this line: figures measured by other benchmarks than ``make paper``.
+KEPT_BENCHMARKS = "<!-- measured outside make paper: kept when make paper rewrites this page -->"
+
+
 def write(docs: Path, records: dict, validation: dict | None, figures, output: Path) -> None:
     """Write ``gallery.md``, ``benchmarks.md`` and ``gallery/*.png`` into ``docs``."""
     docs = Path(docs)
     _copy_pictures(docs, records, validation, output)
     (docs / "gallery.md").write_text(_gallery(figures, records, validation))
-    (docs / "benchmarks.md").write_text(_benchmarks(figures, records))
+    previous = (docs / "benchmarks.md").read_text() if (docs / "benchmarks.md").is_file() else ""
+    kept = previous[previous.index(KEPT_BENCHMARKS):] if KEPT_BENCHMARKS in previous else ""
+    (docs / "benchmarks.md").write_text(_benchmarks(figures, records) + ("\n\n" + kept if kept else ""))

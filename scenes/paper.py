@@ -42,7 +42,8 @@ from ..mitsuba_bridge.render.passes import TRACED_NOTE_PREFIX
 __all__ = ["FIGURE_MODULES", "figures", "main"]
 
 #: The figure modules, in the gallery's order.
-FIGURE_MODULES = ("fig07_plate", "fig06_cd", "fig09_grating", "fig10_base", "fig17_profile", "fig01_table")
+FIGURE_MODULES = ("fig07_plate", "fig06_cd", "fig09_grating", "fig10_base", "fig17_profile", "fig01_table",
+                  "fig11_table", "fig01_door", "fig06_spoon", "fig07_disc", "fig08_cd", "fig12_ring", "fig12_plate")
 
 _PACKAGE = __package__  # scratch_iridescence.scenes
 
@@ -92,26 +93,45 @@ def build_worker(module_name: str, render_name: str, output: Path, resolution, s
     return {"build_s": built, "build_process_s": time.perf_counter() - started, "blend": str(blend)}
 
 
-def _scratch_statistics(bpy) -> dict:
-    """Scratch count, segments and load time of the scene's scratched objects (after the render)."""
+#: Build times of scratch sets already measured in this output folder: {set and options digest: seconds}.
+BUILD_TIMES_FILE = "scratch_build_times.json"
+
+
+def _scratch_statistics(bpy, output: Path) -> dict:
+    """Scratch count, segments and load time of the scene's scratched objects (after the render).
+
+    The load time is the table build's own (the disk cache off).  Pictures of one run that share a
+    scratch set and its options (the views of one object) share the measurement: it is taken once per
+    set and options in the output folder (``BUILD_TIMES_FILE``), since a set of millions of pieces takes a
+    minute to build.
+    """
+    import hashlib
+
     from ..mitsuba_bridge import bsdf, scratch
     from ..addon import storage
 
+    known_path = output / BUILD_TIMES_FILE
+    known = json.loads(known_path.read_text()) if known_path.exists() else {}
     count = segments = 0
     load_s = 0.0
     for obj in bpy.context.scene.objects:
         if obj.type != "MESH" or not storage.has_scratches(obj):
             continue
         data = storage.raw_scratch_bytes(obj)
+        settings = obj.scratch_iridescence  # as the render loads it (the mode decides what is built)
+        options = dict(coherent=bool(settings.coherent), depth_phase=settings.depth_phase,
+                       crossings=settings.crossings)
+        key = hashlib.sha256(data + json.dumps(options, sort_keys=True).encode()).hexdigest()
         began = time.perf_counter()
         scratches = scratch.loads(data)
-        settings = obj.scratch_iridescence  # as the render loads it (the mode decides what is built)
-        # the build's own time, not a read of the file the render may have written (bsdf/tables/disk_cache.py)
-        with mock.patch.dict(os.environ, {"SCRATCH_IRIDESCENCE_CACHE_DIR": "off"}):
-            loaded = bsdf.load(scratches, unit_scale=1.0, coherent=bool(settings.coherent),
-                               depth_phase=settings.depth_phase, crossings=settings.crossings)
-        load_s += time.perf_counter() - began
-        del loaded
+        if key not in known:
+            # the build's own time, not a file the render may have written (bsdf/tables/disk_cache.py)
+            with mock.patch.dict(os.environ, {"SCRATCH_IRIDESCENCE_CACHE_DIR": "off"}):
+                loaded = bsdf.load(scratches, unit_scale=1.0, **options)
+            known[key] = time.perf_counter() - began
+            del loaded
+            known_path.write_text(json.dumps(known, indent=1))
+        load_s += known[key]
         count += scratches.count
         segments += scratches.vertex_count - scratches.count
     return {"scratches": count, "segments": segments, "scratch_load_s": load_s}
@@ -141,7 +161,7 @@ def render_worker(blend: Path, output: Path) -> dict:
     return {"open_s": opened, "render_s": wall, "render_cpu_s": cpu, "peak_mb": peak,
             "width": width, "height": height, "spp": scene.scratch_iridescence.samples,
             "exr": str(stem) + ".exr", "png": str(stem) + ".png", "tables_read": tables["hits"],
-            "tables_built": tables["misses"], **_scratch_statistics(bpy)}
+            "tables_built": tables["misses"], **_scratch_statistics(bpy, output)}
 
 
 #: The machine reference: Mitsuba's own Cornell box (no scratches, no add-on), this size and spp.
@@ -225,7 +245,8 @@ def run_all(output: Path, only=None, scale: float = 1.0, samples_scale: float = 
                                  "--resolution", *map(str, resolution), "--samples", str(samples)], name)
             rendered = _run_worker(["render", built["blend"], "--output", str(output)], name)
             record = {"figure": figure.key, "render": render.name, "name": name,
-                      "total_s": time.perf_counter() - began, **built, **rendered}
+                      "total_s": time.perf_counter() - began, "samples_scale": samples_scale,
+                      "resolution_scale": scale, **built, **rendered}
             (output / f"{name}.json").write_text(json.dumps(record, indent=1))
             print(f"  done in {record['total_s']:.0f} s (render {record['render_s']:.0f} s, "
                   f"peak {record['peak_mb']:.0f} MB)", flush=True)
@@ -274,6 +295,8 @@ def main(argv=None) -> int:
     output.mkdir(parents=True, exist_ok=True)
     records = []
     if not args.pages_only:
+        # Build times are shared by the pictures of this run only: an earlier run's code may have built slower.
+        (output / BUILD_TIMES_FILE).unlink(missing_ok=True)
         # Before and after the pictures: their mean divides the rows, their difference shows the drift.
         before = measure_reference()
         records = run_all(output, args.only, args.scale, args.samples_scale)

@@ -15,7 +15,7 @@ import numpy as np
 
 __all__ = ["active", "operator", "stroke", "material", "plane", "disc", "metal_plate", "table", "towards", "camera",
            "area_light", "point_light", "lamp_studio", "studio_plate", "sky_world", "constant_world",
-           "environment_world", "render_settings", "look_at_rotation"]
+           "environment_world", "render_settings", "look_at_rotation", "import_scratches", "cd_surroundings"]
 
 
 @contextmanager
@@ -43,6 +43,31 @@ def operator(call, obj, **properties):
     if "FINISHED" not in result:
         raise RuntimeError(f"{call.idname_py()} on {obj.name} did not finish: {result}")
     return result
+
+
+def import_scratches(obj, scratches, filename: str, workdir=None):
+    """Put a scratch set made in code on ``obj`` as a user would: saved as a scratch file, then the Import
+    operator (replacing what ``obj`` carried). ``workdir`` keeps the file (a temporary folder by default)."""
+    import tempfile
+    from pathlib import Path
+
+    import bpy
+
+    from ..mitsuba_bridge import scratch
+
+    with tempfile.TemporaryDirectory() as temporary:
+        path = Path(workdir or temporary) / filename
+        path.parent.mkdir(parents=True, exist_ok=True)
+        scratch.save(scratches, path)
+        operator(bpy.ops.scratch.import_file, obj, filepath=str(path), mode="REPLACE")
+
+
+def cd_surroundings(inner_m: float, hole_m: float, height_m: float):
+    """A CD's clear polycarbonate hub (from its hole to where the metal starts) and the dark cloth under it."""
+    hub = material("Polycarbonate hub", (0.6, 0.62, 0.65), roughness=0.25)
+    disc("CD hub", inner_m, (0.0, 0.0, height_m), hub, vertices=128, hole=hole_m)
+    cloth = material("Dark cloth", (0.02, 0.02, 0.025), roughness=1.0)
+    plane("Cloth", 1.0, (0.0, 0.0, 0.0), cloth)
 
 
 def stroke(points, starts=None) -> list[dict]:

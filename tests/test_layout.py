@@ -137,14 +137,15 @@ BRIDGE_ROOMS = {
     "files": {"errors"},
     "scratch": {"errors", "files"},
     "bsdf/maths": set(),
-    "bsdf/tables": {"errors", "scratch"},
+    "bsdf/tables": {"errors", "device", "files", "scratch"},
     "bsdf": {"errors", "scratch", "bsdf/maths", "bsdf/tables"},
     "scene": {"errors", "scratch", "bsdf"},
     "builder": {"errors", "files", "scratch", "bsdf", "bsdf/tables", "scene"},
     "folder": {"errors", "files", "scratch", "bsdf", "scene", "builder"},
     "render": {"root", "errors", "device", "files", "scratch", "bsdf", "scene", "builder"},
     "validation": {"errors", "device", "scratch", "bsdf", "bsdf/tables", "render"},
-    "cli": {"errors", "device", "files", "scratch", "scene", "folder", "render", "validation"},
+    "cluster": {"root", "errors", "device", "files", "folder", "render"},
+    "cli": {"errors", "device", "files", "scratch", "scene", "folder", "render", "validation", "cluster"},
     "root": {"device", "bsdf"},
 }
 #: Modules that must not touch Dr.Jit or Mitsuba, not even inside a function: the tables are built once per set
@@ -250,7 +251,7 @@ def test_top_level_layout_is_as_documented():
         pytest.skip("not a git checkout")
     top = {path.split("/")[0] for path in tracked}
     assert top <= {"addon", "blender_manifest.toml", "mitsuba_bridge", "scenes", "tests", "docs", "README.md",
-                   "pyproject.toml", "Makefile", ".ci", ".gitignore", "__init__.py", "LICENSE"}, top
+                   "pyproject.toml", "Makefile", ".ci", ".gitignore", "__init__.py", "LICENSE", "farm"}, top
     assert len((ROOT / "__init__.py").read_text().strip().splitlines()) == 3
 
 

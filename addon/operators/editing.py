@@ -17,7 +17,7 @@ __all__ = ["USER_ERRORS", "ObjectModeOperator", "combine", "write", "metres_per_
            "warn_relaxed_arcs", "check_numbers"]
 
 #: Exceptions that become a report for the user: the project's user errors (bad parameters, meshes and
-#: files, MeshError, SurfaceError, ScratchFormatError, MemoryLimitError...), the operating system's
+#: files, MeshError, SurfaceError, ScratchFormatError, NotEnoughMemory...), the operating system's
 #: (a file that cannot be written) and running out of memory (a MemoryError without a message gets
 #: one).  Not ValueError or TypeError: those are bugs, and they surface with their traceback.
 USER_ERRORS = (ScratchUserError, MemoryError, OSError)

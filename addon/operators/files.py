@@ -4,16 +4,27 @@ Exporting writes the bytes stored in the .blend (a format-v1 file, see
 :mod:`.storage`) unchanged, so exporting an unchanged object twice gives
 identical files.  Files are written atomically (``scratch.save_bytes``: a
 temporary file, then a rename).
+
+Importing runs in Blender's UI thread, so its cost is bounded before it starts:
+the file's headers say how many vertices it holds (nothing inflated), and a
+file beyond :data:`MAX_IMPORT_VERTICES`, or whose import would not fit the
+memory Blender is allowed, is refused with the estimate (the format allows 16
+times more, for scripts and the command line).  The check of which scratches lie
+outside the mesh's UV islands (a warning only) tests at most
+:data:`MAX_CHECKED_VERTICES` vertices, evenly spread.
 """
 from __future__ import annotations
 
 from pathlib import Path
 
 import bpy
+import numpy as np
 from bpy.props import StringProperty
 from bpy_extras.io_utils import ExportHelper, ImportHelper
 
 from ...mitsuba_bridge import scratch
+from ...mitsuba_bridge.device.memory import check_memory, format_bytes
+from ...mitsuba_bridge.errors import ParameterError
 from ...mitsuba_bridge.scratch import ScratchSet
 from .. import storage
 from .editing import USER_ERRORS, ObjectModeOperator, combine, fail, plural, write
@@ -21,7 +32,34 @@ from ..mesh import MeshError, check_object, mesh_arrays
 from .properties import mode_property
 from ..geometry.uvmap import UVLocator
 
-__all__ = ["SCRATCH_OT_clear", "SCRATCH_OT_import_file", "SCRATCH_OT_export_file"]
+__all__ = ["SCRATCH_OT_clear", "SCRATCH_OT_import_file", "SCRATCH_OT_export_file", "MAX_IMPORT_VERTICES",
+           "check_import"]
+
+#: Most vertices an import takes in Blender: loading, validating and storing cost about 0.3 µs per vertex
+#: (16.8 M vertices: 5.1 s on the 2-core development machine, profiled), so the largest import keeps Blender
+#: busy about a second.  Files up to the format's 2**26 vertices are for scripts and the command line.
+MAX_IMPORT_VERTICES = 1 << 22
+#: Peak memory of an import per vertex (bytes): the inflated uv, the set, the stored file's bytes and
+#: Blender's copy of them, 16 bytes each, and temporaries.
+IMPORT_BYTES_PER_VERTEX = 96
+#: The UV-island check (a warning) locates at most this many vertices (about 2 µs each).
+MAX_CHECKED_VERTICES = 1 << 17
+
+
+def check_import(path: Path) -> tuple[int, int]:
+    """``(scratches, vertices)`` the file declares, or a user error with the estimate where importing it in
+    Blender would take too long or need more memory than Blender is allowed."""
+    count, vertices = scratch.declared_counts(path)
+    if vertices > MAX_IMPORT_VERTICES:
+        seconds = vertices * 0.3e-6
+        raise ParameterError(
+            f"{path.name} holds {vertices:,} vertices in {plural(count)}: importing it would keep Blender busy for "
+            f"about {seconds:.0f} s and need about {format_bytes(vertices * IMPORT_BYTES_PER_VERTEX)}; at most "
+            f"{MAX_IMPORT_VERTICES:,} vertices are imported in Blender (simplify the scratches, split the file, "
+            "or render it with the command line)")
+    check_memory(vertices * IMPORT_BYTES_PER_VERTEX, f"importing {path.name} ({vertices:,} vertices)",
+                 advice="split the file")
+    return count, vertices
 
 
 class SCRATCH_OT_clear(ObjectModeOperator, bpy.types.Operator):
@@ -62,8 +100,9 @@ class SCRATCH_OT_import_file(ObjectModeOperator, bpy.types.Operator, ImportHelpe
         try:
             check_object(obj)
             path = Path(bpy.path.abspath(self.filepath))
-            if not path.is_file():
+            if not path.exists():
                 raise MeshError(f"No scratch file at '{path}'")
+            check_import(path)  # (a FIFO, a device or a folder is refused here too, without waiting)
             loaded = scratch.load(path)
             if loaded.count == 0 and self.mode == "ADD":
                 self.report({"INFO"}, f"{path.name} holds no scratches: nothing to add to {obj.name}")
@@ -83,7 +122,8 @@ class SCRATCH_OT_import_file(ObjectModeOperator, bpy.types.Operator, ImportHelpe
                                      "until it has a UV map with faces (UV > Unwrap)")
         elif outside:
             verb = "lies" if outside == 1 else "lie"
-            self.report({"WARNING"}, f"{plural(outside)} of {path.name} {verb} outside the UV islands of "
+            least = "at least " if loaded.vertex_count > MAX_CHECKED_VERTICES else ""  # (a sample was checked)
+            self.report({"WARNING"}, f"{least}{plural(outside)} of {path.name} {verb} outside the UV islands of "
                                      f"{obj.name} and will not show")
         return {"FINISHED"}
 
@@ -100,9 +140,12 @@ def _outside_uv(obj, context, scratches: ScratchSet) -> tuple[int, str]:
         arrays = mesh_arrays(obj, context.evaluated_depsgraph_get())
     except MeshError as error:
         return 0, str(error).split(";")[0]
-    triangle, _ = UVLocator(arrays.triangle_uv).locate(scratches.uv)
-    missing = triangle < 0
-    outside = int(len(set(scratches.scratch_index_of_vertices()[missing].tolist()))) if missing.any() else 0
+    # (evenly spread vertices, at most MAX_CHECKED_VERTICES: a warning need not cost seconds)
+    checked = np.unique(np.linspace(0, scratches.vertex_count - 1, min(scratches.vertex_count, MAX_CHECKED_VERTICES))
+                        .astype(np.int64))
+    triangle, _ = UVLocator(arrays.triangle_uv).locate(scratches.uv[checked])
+    missing = checked[triangle < 0]
+    outside = int(len(np.unique(scratches.scratch_index_of_vertices()[missing]))) if missing.size else 0
     return outside, ""
 
 

@@ -12,7 +12,7 @@ from .editing import (USER_ERRORS, ObjectModeOperator, check_numbers, combine, f
 from ..mesh import check_object, world_surface
 from ..geometry.scatter import ScatterSpec, estimate_bytes, expected_vertices, scatter
 from .properties import LengthProperties, LooksProperties, draw_lengths, draw_looks, mode_property, seed_property
-from ..geometry.units import check_memory
+from ...mitsuba_bridge.device.memory import check_memory
 
 __all__ = ["SCRATCH_OT_generate"]
 
@@ -56,7 +56,7 @@ class SCRATCH_OT_generate(ObjectModeOperator, LooksProperties, LengthProperties,
                 bend=self.bend, metres_per_unit=metres_per_unit(context))
             existing_bytes = storage.scratch_summary(obj)["count"] * 200 if self.mode == "ADD" else 0
             check_memory(estimate_bytes(spec.count, expected_vertices(spec)) + existing_bytes,
-                         f"Generating {plural(spec.count)}")
+                         f"Generating {plural(spec.count)}", advice="ask for fewer")
             placed = scatter(surface, spec, np.random.default_rng(self.seed))
             if placed.scratches.count == 0:  # never replace scratches by nothing, nor report success
                 raise ParameterError(f"None of the {plural(spec.count)} could be placed on '{obj.name}'; "

@@ -13,6 +13,7 @@ import traceback
 import bpy
 import numpy as np
 
+from ...mitsuba_bridge.errors import ScratchUserError
 from ...mitsuba_bridge.render.aovs import PASSES, blender_passes  # numpy only: no Mitsuba imported here
 from . import backend
 from .gather import GatherError, gather_scene, gather_settings
@@ -51,6 +52,18 @@ def _fail(engine, message: str) -> None:
     engine.error_set(message)
 
 
+def _user_error(error: BaseException):
+    """The :class:`ScratchUserError` that is ``error`` or its cause or context, if any (the bridge's loader hands on a
+    plugin's user error itself: :func:`...mitsuba_bridge.errors.plugin_user_errors`)."""
+    seen = set()
+    while error is not None and id(error) not in seen:
+        if isinstance(error, ScratchUserError):
+            return error
+        seen.add(id(error))
+        error = error.__cause__ or error.__context__
+    return None
+
+
 def _bridge():
     """The bridge modules that need Mitsuba, or :class:`.backend.BackendUnavailable` saying what to install."""
     backend.require()  # Mitsuba, Dr.Jit and OpenEXR importable for this Blender's Python, or one message
@@ -86,7 +99,7 @@ def render_frame(engine, depsgraph) -> None:
         variant = activation.activate(settings.variant)
         engine.update_stats("", "Mitsuba | Gathering scene")
         description = gather_scene(depsgraph, camera=getattr(engine, "camera_override", None))
-    except (GatherError, variants.VariantError) as error:
+    except (GatherError, variants.VariantError, ScratchUserError) as error:  # (the description's invariants too)
         _fail(engine, str(error))
         return
     except Exception as error:  # an add-on bug must not look like a black render
@@ -99,6 +112,11 @@ def render_frame(engine, depsgraph) -> None:
         return
 
     width, height = description.film.size
+    try:  # before Blender allocates its own image of that size
+        passes.check_film_memory(width, height, settings.spp, settings.seed)
+    except (passes.NotEnoughMemory, passes.ScheduleError) as error:
+        _fail(engine, f"Mitsuba Scratch: {error}")
+        return
     result = engine.begin_result(0, 0, width, height, layer=depsgraph.view_layer.name)
     cancelled, progress = False, None
     try:
@@ -136,8 +154,12 @@ def render_frame(engine, depsgraph) -> None:
     except (passes.NotEnoughMemory, passes.ScheduleError) as error:
         _fail(engine, f"Mitsuba Scratch: {error}")
     except Exception as error:
-        traceback.print_exc()
-        _fail(engine, f"Mitsuba Scratch: rendering failed: {type(error).__name__}: {error}")
+        user = _user_error(error)
+        if user is not None:  # raised inside a plugin (Mitsuba wraps it): the user's to fix, no traceback
+            _fail(engine, f"Mitsuba Scratch: {user}")
+        else:
+            traceback.print_exc()
+            _fail(engine, f"Mitsuba Scratch: rendering failed: {type(error).__name__}: {error}")
     finally:
         engine.end_result(result)
     if progress is not None and progress.traced_note:

@@ -34,6 +34,7 @@ from collections import deque
 
 import numpy as np
 
+from ...mitsuba_bridge.errors import ScratchUserError
 from ...mitsuba_bridge.render.session import Change, Session, Update
 from ...mitsuba_bridge.scene import Film
 from . import sync
@@ -132,8 +133,8 @@ class ViewportRender:
                 updates = [self._build(depsgraph, view)]
             self.post(updates)
         except Exception as error:  # never let a sync error reach Blender as a crash
-            traceback.print_exc()
-            self._set_error(f"Mitsuba Scratch viewport: {type(error).__name__}: {error}")
+            _print_bug(error)
+            self._set_error(_message(error))
         finally:
             self.main_thread_seconds.append(time.perf_counter() - began)
 
@@ -290,7 +291,7 @@ class ViewportRender:
                             self._finished, self._error = session.finished, None
                             self._stats = session.stats
                 except Exception as error:
-                    traceback.print_exc()
+                    _print_bug(error)
                     if session is not None:
                         with viewport_turn():
                             session.close()
@@ -320,7 +321,15 @@ class ViewportRender:
 def _message(error: Exception) -> str:
     if isinstance(error, ImportError):
         return MITSUBA_MISSING.format(error=error)
+    if isinstance(error, ScratchUserError):  # the user's to fix (tables that cannot fit): the message says how
+        return f"Mitsuba Scratch viewport: {error}"
     return f"Mitsuba Scratch viewport: {type(error).__name__}: {error}"
+
+
+def _print_bug(error: Exception) -> None:
+    """The traceback in the console, unless ``error`` is a user error (shown in the viewport, nothing to debug)."""
+    if not isinstance(error, ScratchUserError):
+        traceback.print_exception(error)
 
 
 def stats_of(viewport: ViewportRender) -> dict:

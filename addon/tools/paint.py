@@ -22,7 +22,7 @@ from ..geometry.scatter import MAX_LENGTH_PER_SIZE, estimate_bytes, scratches_fr
 from ..operators.properties import (LengthProperties, LooksProperties, StrokeProperties, draw_lengths, draw_looks,
                        seed_property)
 from .stroke import SNAP_FRACTION, StrokeOperator, stroke_runs
-from ..geometry.units import check_memory
+from ...mitsuba_bridge.device.memory import check_memory
 from ..geometry.uvmap import UVLocator
 
 __all__ = ["SCRATCH_OT_paint_stroke", "SCRATCH_OT_erase_stroke", "SCRATCH_TOOL_brush", "SCRATCH_TOOL_eraser"]
@@ -138,7 +138,8 @@ class SCRATCH_OT_paint_stroke(StrokeOperator, StrokeProperties, LooksProperties,
             raise ParameterError("Density is 0: the spray would paint nothing")
         travelled = sum(float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum()) for _, _, p, _ in runs)
         expected = self.density * (len(runs) + travelled / self.radius)
-        check_memory(estimate_bytes(min(expected, 2.0**62) + 1), f"Spraying about {_count(expected)} scratches")
+        check_memory(estimate_bytes(min(expected, 2.0**62) + 1), f"Spraying about {_count(expected)} scratches",
+                     advice="lower the density or the radius")
         centres, directions, pressure = spray_centres_with_pressure(
             rng, [p for _, _, p, _ in runs], [surface.normal[t] for t, _, _, _ in runs], [q for _, _, _, q in runs],
             self.radius, self.density, self.jitter, self.use_pressure_density)
@@ -197,7 +198,7 @@ class SCRATCH_OT_erase_stroke(StrokeOperator, StrokeProperties, bpy.types.Operat
             stroke_points = [p for _, _, p, _ in runs]
             # The stroke is sampled every radius / 4: a tiny radius on a long stroke costs memory.
             check_memory(_BYTES_PER_SAMPLE * _samples(_length(stroke_points), self.radius, len(runs)),
-                         f"Erasing with a radius of {self.radius:.3g}")
+                         f"Erasing with a radius of {self.radius:.3g}", advice="use a larger radius")
             touched = touched_scratches(lines.a, lines.b, lines.scratch, stroke_points, self.radius,
                                         scratches.count)
             if not touched.any():
@@ -209,7 +210,8 @@ class SCRATCH_OT_erase_stroke(StrokeOperator, StrokeProperties, bpy.types.Operat
                 # ... and so is every touched scratch, along its whole length.
                 cut_length = float(np.linalg.norm(lines.b - lines.a, axis=1)[touched[lines.scratch]].sum())
                 check_memory(_BYTES_PER_SAMPLE * _samples(cut_length, self.radius, int(touched.sum())),
-                             f"Cutting {plural(int(touched.sum()))} with a radius of {self.radius:.3g}")
+                             f"Cutting {plural(int(touched.sum()))} with a radius of {self.radius:.3g}",
+                             advice="use a larger radius")
 
                 def to_surface(uv):
                     triangle, bary = locator.locate(uv)

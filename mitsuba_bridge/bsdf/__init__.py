@@ -30,7 +30,18 @@ def register() -> None:
     from .plugin import plugin_class
 
     cls = plugin_class()
-    mi.register_bsdf(PLUGIN_NAME, lambda props: cls(props))
+    mi.register_bsdf(PLUGIN_NAME, lambda props: _construct(cls, props))
+
+
+def _construct(cls, props):
+    """``cls(props)``; a user error on its way into Mitsuba's loader is noted (:func:`..errors.plugin_user_errors`)."""
+    from ..errors import ScratchUserError, raised_in_plugin
+
+    try:
+        return cls(props)
+    except ScratchUserError as error:
+        raised_in_plugin(error)
+        raise
 
 
 def plugin_dict(scratches=None, *, filename=None, coherence_diameter=DEFAULT_COHERENCE_DIAMETER_M,

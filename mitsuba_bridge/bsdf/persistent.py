@@ -38,7 +38,8 @@ import weakref
 
 import numpy as np
 
-__all__ = ["Shared", "kept_between_renders", "reuse_or_build", "share", "statistics", "forget"]
+__all__ = ["Shared", "kept_between_renders", "reuse_or_build", "share", "statistics", "forget", "recording",
+           "fingerprint"]
 
 
 @dataclasses.dataclass(eq=False)
@@ -47,6 +48,7 @@ class Shared:
     weakly (and strongly while kept)."""
 
     value: object
+    digest: str | None = None  #: :func:`fingerprint`'s digest of the tables, once asked for
 
 
 @dataclasses.dataclass(eq=False)
@@ -66,6 +68,33 @@ _kept: dict[bytes, Shared] = {}
 #: takes part too, harmlessly: the keys are the sets' contents.)
 _used: set[bytes] | None = None
 _counts = {"built": 0, "reused": 0}  #: tables built and taken by new BSDFs since the start
+_recordings: list[list] = []  #: open :func:`recording` blocks: each gets every Shared handed to a BSDF
+
+
+@contextlib.contextmanager
+def recording():
+    """Yield a list that collects the :class:`Shared` tables of every scratch BSDF made inside the block
+    (taken or built): what a scene loaded there renders with (``render/parts.py`` names them in a part)."""
+    found: list[Shared] = []
+    with _lock:
+        _recordings.append(found)
+    try:
+        yield found
+    finally:
+        with _lock:
+            _recordings.remove(found)
+
+
+def fingerprint(shared: list) -> str:
+    """A digest of the tables ``shared`` hold (each one's arrays and the code version, in any order); the same
+    for every process that renders the same sets with the same code, another for any other tables."""
+    from .tables.disk_cache import code_fingerprint, tables_digest
+
+    for entry in shared:
+        if entry.digest is None:
+            entry.digest = tables_digest(entry.value[0].tables)
+    text = ",".join(sorted({entry.digest for entry in shared}))
+    return hashlib.sha256(f"{code_fingerprint()}:{text}".encode()).hexdigest()[:32]
 
 
 @contextlib.contextmanager
@@ -101,6 +130,8 @@ def reuse_or_build(scratches, options: tuple, build) -> Shared:
         if not reused:
             _live.append(_Entry(weakref.ref(shared), options, scratches.count, None, key))
         _counts["reused" if reused else "built"] += 1
+        for found in _recordings:
+            found.append(shared)
         if _used is not None:
             _kept[key] = shared
             _used.add(key)
@@ -114,6 +145,8 @@ def share(scratches, options: tuple, value) -> Shared:
     with _lock:
         _prune()  # the tables this stroke replaces
         _live.append(_Entry(weakref.ref(shared), (_variant(), *options), scratches.count, scratches, None))
+        for found in _recordings:
+            found.append(shared)
     return shared
 
 

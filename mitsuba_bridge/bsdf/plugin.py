@@ -263,16 +263,16 @@ def _make_class() -> type:
 
             def build(key=None):
                 # a new BSDF's set (``key``) may have been built by an earlier process (.disk_cache)
-                found = disk_cache.load_tables(key, scratches) if key is not None else None
+                found = disk_cache.load_tables(key, scratches, repr(options)) if key is not None else None
                 if found is not None:
-                    cache, scan = found
+                    cache, scan, _ = found
                 else:
                     began = time.perf_counter()
                     # a set that only appends scratches (a stroke) extends the previous tables (.incremental)
                     cache = update_tables(previous, scratches, self.cell_size, crossings=self._height_field)
                     scan = ScanArrays.of(cache.tables, periodic)
                     if key is not None and time.perf_counter() - began >= disk_cache.MIN_BUILD_SECONDS:
-                        disk_cache.store_tables(key, cache, scan)
+                        disk_cache.store_tables(key, cache, scan, repr(options))
                 return cache, Grid.from_arrays(cache.tables, scan, continuation=continuation)
 
             options = (self.cell_size, self._height_field, periodic, continuation, grid.build_constants())

@@ -18,7 +18,7 @@ from .resources import InMemory, load_dict, safe_name
 from .transform import to_mitsuba
 from .volumes import WORLD_MEDIUM, has_media, material_volume, medium_dict
 
-__all__ = ["scene_dict", "load_scene", "load_dict", "InMemory", "sensor_dict", "film_dict",
+__all__ = ["scene_dict", "load_scene", "check_tables_memory", "load_dict", "InMemory", "sensor_dict", "film_dict",
            "integrator_dict", "window_camera", "bsdf_dict", "emitter_dict", "add_weights", "light_dict", "world_dict",
            "material_id", "MIN_INSTANCES"]
 
@@ -127,9 +127,22 @@ def load_scene(description: SceneDescription, settings: RenderSettings, *, insta
     """
     from ..bsdf.persistent import kept_between_renders
 
+    check_tables_memory(description)
     kept = contextlib.nullcontext() if keep_tables is None else kept_between_renders(keep_tables)
     with kept:
         return load_dict(scene_dict(description, settings, InMemory(), instancing=instancing))
+
+
+def check_tables_memory(description: SceneDescription) -> None:
+    """Refuse, before loading, a scene whose scratch tables cannot fit the memory this process is allowed
+    (:func:`...bsdf.tables.grid.check_piece_memory`: raised inside Mitsuba's loader it would reach the caller as a
+    plugin's traceback)."""
+    from ..bsdf.tables.grid import check_piece_memory
+    from ..scene import ScratchedMetal
+
+    for key, material in description.materials.items():
+        if isinstance(material, ScratchedMetal) and any(shape.material == key for shape in description.shapes):
+            check_piece_memory(material.scratches)
 
 
 def _unique(names: set, name: str) -> str:

@@ -22,6 +22,7 @@ import re
 import numpy as np
 
 from ..bsdf.generated import ATTRIBUTE as GENERATED_ATTRIBUTE
+from ..errors import plugin_user_errors
 from ..bsdf.tables.references import aligned_array
 from ..scene.colour import srgb_to_linear
 from ..scene import MeshData, ScratchedMetal, Shape, Texture
@@ -85,10 +86,14 @@ def load_dict(description: dict):
     Mitsuba does not promise to support (mitsuba3 #457; a rare "failed to instantiate ...
     basic_string::_M_create" was seen that way). See docs/rendering.md, What a chunk's size costs. The
     shapes and BSDFs of a scene are objects already: little is left to parallelise.
+
+    A user error raised by the scratch BSDF while it loads comes out as itself (:func:`..errors.plugin_user_errors`),
+    not as Mitsuba's ``RuntimeError`` quoting its traceback.
     """
     import mitsuba as mi
 
-    return mi.load_dict(description, parallel=False)
+    with plugin_user_errors():
+        return mi.load_dict(description, parallel=False)
 
 
 class InMemory:

@@ -56,13 +56,14 @@ def parse_chunk(text: str) -> tuple[int, int]:
 
 
 def _load(folder):
-    from ..folder.export import SCENE_FILE, load_folder
+    from ..folder.export import check_folder, load_folder
     from ..render.interrupts import interruption_in
 
     folder = Path(folder)
-    scene_file = folder / SCENE_FILE if folder.is_dir() else folder
-    if not scene_file.is_file():
-        raise CommandError(f"{scene_file}: no such scene file (expected an exported folder holding {SCENE_FILE})")
+    try:
+        scene_file = check_folder(folder)  # (a killed re-export completed; FIFOs refused before Mitsuba waits on one)
+    except OSError as error:
+        raise CommandError(str(error)) from None
     try:
         return load_folder(folder), scene_file
     except (OSError, RuntimeError, ValueError, TypeError) as error:
@@ -79,7 +80,8 @@ def render_command(args) -> int:
     from ..folder.export import EXPORTED_ENTRIES, scene_seed
     from ..render.activation import activate
     from ..render.memory import NotEnoughMemory
-    from ..render.parts import RenderIdentity, scene_fingerprint, schedule_digest, software, write_part
+    from ..render.parts import (RenderIdentity, recording_tables, scene_fingerprint, schedule_digest, software,
+                                tables_fingerprint, write_part)
     from ..render.passes import Refresh, plan_render, render_chunks
 
     if args.spp is not None and args.spp < 1:
@@ -97,7 +99,8 @@ def render_command(args) -> int:
         raise CommandError(str(error), 2) from None
 
     started = time.perf_counter()
-    scene, scene_file = _load(args.folder)
+    with recording_tables() as tables:  # (what the scratch BSDFs render with: a part names it)
+        scene, scene_file = _load(args.folder)
     sensors = scene.sensors()
     if not sensors:
         raise CommandError(f"{scene_file}: the scene has no sensor (camera)")
@@ -134,7 +137,8 @@ def render_command(args) -> int:
     try:
         if chunk:
             identity = RenderIdentity(scene_fingerprint(scene_file.parent, EXPORTED_ENTRIES), variant, software(),
-                                      width, height, spp, seed, len(chunks), schedule_digest(chunks))
+                                      width, height, spp, seed, len(chunks), schedule_digest(chunks),
+                                      tables_fingerprint(tables))
             write_part(output, identity, progress.sums, samples)
         else:
             write_image(output, progress.image)

@@ -13,10 +13,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..files.atomic import replacing_folder
+import os
+
+from ..files.regular import check_regular
+from ..files.swap import SwapRecoveryError, recover_folder, replacing_folder
 from ..scene import RenderSettings, SceneDescription
 
-__all__ = ["SCENE_FILE", "EXPORTED_ENTRIES", "export_folder", "load_folder", "scene_seed"]
+__all__ = ["SCENE_FILE", "EXPORTED_ENTRIES", "export_folder", "load_folder", "check_folder", "scene_seed",
+           "SwapRecoveryError"]
 
 SCENE_FILE = "scene.xml"
 
@@ -28,9 +32,10 @@ def export_folder(description: SceneDescription, settings: RenderSettings, folde
     """Write ``description`` into ``folder`` (created if needed); returns the scene file.
 
     The export is built in a temporary folder and swapped in as a whole
-    (:func:`~mitsuba_bridge.files.atomic.replacing_folder`): a failed re-export leaves
+    (:func:`~mitsuba_bridge.files.swap.replacing_folder`): a failed re-export leaves
     the previous export intact, never an old ``scene.xml`` beside new scratch
-    files.  A Mitsuba variant must be active (transforms are Mitsuba objects
+    files, and one killed while swapping is completed by the next export or
+    render of the folder.  A Mitsuba variant must be active (transforms are Mitsuba objects
     while building).
     """
     from ..builder import scene_dict
@@ -48,18 +53,39 @@ def load_folder(folder):
 
     Mitsuba resolves the XML's relative paths (meshes, textures, scratch files)
     against the scene file's folder; the working directory is left alone (it is
-    global state shared with Blender).
+    global state shared with Blender).  A re-export killed while it swapped its
+    files in is completed first (:func:`check_folder`); every exported file must
+    be a regular file (a FIFO would make Mitsuba's readers wait forever).
     """
     import mitsuba as mi
 
-    folder = Path(folder)
-    scene_file = folder / SCENE_FILE if folder.is_dir() else folder
-    if not scene_file.is_file():
-        raise FileNotFoundError(f"{scene_file}: no such scene file (expected an exported folder holding {SCENE_FILE})")
+    scene_file = check_folder(folder)
     # Serial (as builder.load_dict): with Mitsuba's parallel loader a plugin that fails on a worker thread (a
     # corrupt scratch file) could surface as "Child object at index 9 has not been instantiated yet" instead
     # of its own message, and the lights' and the world's emitter numbers (a kernel literal) vary by run.
     return mi.load_file(str(scene_file.resolve()), parallel=False)
+
+
+def check_folder(folder) -> Path:
+    """The scene file of an export folder (or of ``folder`` naming the file itself), ready to be read.
+
+    Completes a re-export that a killed process left half swapped
+    (:func:`~mitsuba_bridge.files.swap.recover_folder`), then checks that the scene file
+    and every file of the exported entries are regular files.  Raises
+    ``FileNotFoundError`` (no scene file), :class:`~mitsuba_bridge.files.regular.NotARegularFile`
+    or :class:`~mitsuba_bridge.files.swap.SwapRecoveryError`.
+    """
+    folder = Path(folder)
+    scene_file = folder / SCENE_FILE if folder.is_dir() else folder
+    recover_folder(scene_file.parent)
+    if not os.path.lexists(scene_file):
+        raise FileNotFoundError(f"{scene_file}: no such scene file (expected an exported folder holding {SCENE_FILE})")
+    check_regular(scene_file)
+    for name in EXPORTED_ENTRIES[1:]:
+        for root, folders, files in os.walk(scene_file.parent / name):  # (links to folders are not followed)
+            for entry in files + [f for f in folders if os.path.islink(os.path.join(root, f))]:
+                check_regular(os.path.join(root, entry))
+    return scene_file
 
 
 def scene_seed(scene_file) -> int:

@@ -26,7 +26,8 @@ from .memory import NotEnoughMemory, check_memory
 from .schedule import (MAX_SAMPLES_PER_PASS, Chunk, PairwiseSum, ScheduleError, part_range, pass_seed,
                        sample_schedule)
 
-__all__ = ["Progress", "Refresh", "RenderPlan", "plan_render", "render_passes", "render_chunks", "render_image",
+__all__ = ["Progress", "Refresh", "RenderPlan", "plan_render", "check_film_memory", "render_passes", "render_chunks",
+           "render_image",
            "film_pixels", "pass_seed",
            "sample_schedule", "Chunk", "MAX_SAMPLES_PER_PASS", "NotEnoughMemory", "ScheduleError"]
 
@@ -228,6 +229,14 @@ def plan_render(scene, spp: int, *, seed: int = 0) -> RenderPlan:
     width, height = (int(c) for c in scene.sensors()[0].film().crop_size())
     chunks = sample_schedule(spp, width * height, seed, gpu=on_gpu())
     return RenderPlan(width, height, spp, seed, chunks, chunks)
+
+
+def check_film_memory(width: int, height: int, spp: int, seed: int = 0):
+    """The memory estimate of a ``width`` × ``height`` render at ``spp`` (the active variant's schedule), before any
+    scene is loaded or image allocated; :class:`NotEnoughMemory` when it does not fit what is allowed."""
+    from ..device.variants import on_gpu
+
+    return check_memory(width, height, sample_schedule(spp, int(width) * int(height), seed, gpu=on_gpu()))
 
 
 def render_passes(scene, spp: int, *, seed: int = 0) -> Iterator[Progress]:

@@ -41,11 +41,23 @@ restarts.  Passes are frozen (``dr.freeze``, :mod:`.freezing`): a camera move
 replays the recorded pass without tracing the integrator and the BSDF again;
 other updates record it again (about one traced pass).  Methods are not
 thread-safe: one thread owns a session.
+
+Inputs are checked as the command line checks its arguments, before anything
+changes: the description's own invariants (:mod:`..scene.description`: film
+sizes, matrices, fields of view, powers) and the session's (the right kind of
+object for each update, light indices and names that exist, a finite
+``step``), each a :class:`~mitsuba_bridge.errors.ParameterError` (a
+``ValueError``) with a clear message.  A film too large for the memory this
+process is allowed is refused before anything is allocated
+(:func:`.memory.check_session_memory`), and a closed session refuses every call
+with :class:`SessionClosed`.
 """
 from __future__ import annotations
 
 import dataclasses
 import enum
+import math
+import numbers
 from dataclasses import dataclass
 import time
 
@@ -55,14 +67,19 @@ from .. import builder
 from ..builder import updates
 from ..device.kernels import KernelCounter
 from ..device.variants import on_gpu
-from ..scene import Camera, Film, RenderSettings, SceneDescription, ScratchedMetal
+from ..errors import ParameterError
+from ..scene import (LIGHT_TYPES, WORLD_TYPES, Camera, Film, RenderSettings, SceneDescription, ScratchedMetal,
+                     affine)
+from ..scene.materials import Material
+from ..scratch import ScratchSet
 from .activation import activate
 from .filtering import footprint_keys, footprint_values, pixel_size
 from .freezing import FrozenRender
+from .memory import check_session_memory
 from .passes import Progress, pass_seed
 
-__all__ = ["Session", "Change", "Update", "plan_pass", "strip_windows", "BATCH_SPP", "SINGLE_SAMPLE_PASSES",
-           "CPU_STRIP_PIXELS"]
+__all__ = ["Session", "SessionClosed", "Change", "Update", "plan_pass", "strip_windows", "BATCH_SPP",
+           "SINGLE_SAMPLE_PASSES", "CPU_STRIP_PIXELS"]
 
 #: Full-resolution passes of one sample after each change (a quick, steady refinement) ...
 SINGLE_SAMPLE_PASSES = 4
@@ -86,6 +103,18 @@ class Change(enum.Enum):
     WORLD = "world"  #: (world,)
 
 
+class SessionClosed(RuntimeError):
+    """A call on a session after :meth:`Session.close`."""
+
+
+def _expect(value, kind, what: str):
+    """``value`` when it is a ``kind``, else :class:`ParameterError` naming ``what`` was given instead."""
+    if not isinstance(value, kind):
+        names = " or ".join(k.__name__ for k in (kind if isinstance(kind, tuple) else (kind,)))
+        raise ParameterError(f"{what} must be a {names}, got {type(value).__name__}")
+    return value
+
+
 @dataclass(frozen=True)
 class Update:
     """One edit of a session's description: ``Session.apply(update)`` calls the method ``change`` names
@@ -93,6 +122,12 @@ class Update:
 
     change: Change
     args: tuple = ()
+
+
+def _whole(name: str, value, minimum: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < minimum:
+        raise ParameterError(f"{name} must be a whole number >= {minimum}, got {value!r}")
+    return int(value)
 
 
 def plan_pass(index: int, spp_done: int, spp_total: int, start_divisor: int,
@@ -163,20 +198,17 @@ class Session:
 
     def __init__(self, description: SceneDescription, settings: RenderSettings, *, samples: int | None = None,
                  start_divisor: int = 4, freeze: bool = True, strip_pixels: int | None = None):
-        if start_divisor < 1:
-            raise ValueError(f"start_divisor must be at least 1, got {start_divisor}")
-        self.settings = settings
-        self.samples = int(settings.spp if samples is None else samples)
-        if self.samples < 1:
-            raise ValueError("samples must be at least 1")
-        self.start_divisor = int(start_divisor)
-        self._strip_pixels = strip_pixels
+        _expect(description, SceneDescription, "the session's description")
+        self.settings = _expect(settings, RenderSettings, "the session's settings")
+        self.samples = _whole("samples", settings.spp if samples is None else samples, 1)
+        self.start_divisor = _whole("start_divisor", start_divisor, 1)
+        self._strip_pixels = None if strip_pixels is None else _whole("strip_pixels", strip_pixels, 0)
+        self._closed = False
         activate(settings.variant)
         self._counter = KernelCounter()
         self._render = FrozenRender(freeze)
         self._stats = {"passes": 0, "rebuilds": 0, "updates": 0, "last_update": "build",
                        "last_pass_seconds": 0.0, "last_update_seconds": 0.0}
-        self._closed = False
         self._latest: Progress | None = None
         self._load(description)
 
@@ -184,6 +216,12 @@ class Session:
     def _load(self, description: SceneDescription) -> None:
         import mitsuba as mi
 
+        strip_pixels = self._strip_pixels
+        if strip_pixels is None:
+            strip_pixels = 0 if on_gpu() else CPU_STRIP_PIXELS
+        width, height = description.film.size
+        check_session_memory(width, height, self.start_divisor, strip_pixels)  # before any film exists
+        builder.check_tables_memory(description)
         self.description = description
         # One Mitsuba shape per described shape (no shapegroups): transforms are updated per shape name.
         scene_dict = builder.scene_dict(description, self.settings, instancing=False)
@@ -192,9 +230,6 @@ class Session:
             preview = _preview_film(description.film, self.start_divisor)
             scene_dict[updates.PREVIEW_SENSOR] = builder.sensor_dict(description.camera, preview, self.settings,
                                                                      medium=medium)
-        strip_pixels = self._strip_pixels
-        if strip_pixels is None:
-            strip_pixels = 0 if on_gpu() else CPU_STRIP_PIXELS
         self._windows = strip_windows(description.film, strip_pixels)
         if len(self._windows) > 1:
             camera, film = builder.window_camera(description.camera, description.film, self._windows[0])
@@ -210,8 +245,8 @@ class Session:
         self._restart()
 
     def _rebuild(self, description: SceneDescription, reason: str) -> None:
-        self._stats["rebuilds"] += 1
         self._load(description)
+        self._stats["rebuilds"] += 1
         self._stats["last_update"] = f"rebuild ({reason})"
 
     def _restart(self) -> None:
@@ -263,17 +298,30 @@ class Session:
         return sensors
 
     # ------------------------------------------------------------------ updates
+    def _check_open(self) -> None:
+        if self._closed:
+            raise SessionClosed("the session is closed: build a new one")
+
     def apply(self, update: Update) -> None:
         """Apply ``update`` (one of :class:`Change`; ``BUILD`` is the caller's: it makes a new session)."""
+        self._check_open()
+        _expect(update, Update, "an update")
         methods = {Change.CAMERA: self.set_camera, Change.FILM: self.set_film, Change.TRANSFORM: self.set_transform,
                    Change.SCRATCHES: self.set_scratches, Change.MATERIAL: self.set_material,
                    Change.LIGHT: self.set_light, Change.WORLD: self.set_world}
         if update.change not in methods:
-            raise ValueError(f"a session cannot apply {update.change}: build a new session")
-        methods[update.change](*update.args)
+            raise ParameterError(f"a session cannot apply {update.change}: build a new session")
+        method = methods[update.change]
+        count = method.__code__.co_argcount - 1
+        if not isinstance(update.args, tuple) or len(update.args) != count:
+            raise ParameterError(f"a {update.change.name} update takes {count} argument{'s' * (count != 1)}, got "
+                                 f"{update.args!r}")
+        method(*update.args)
 
     def set_camera(self, camera: Camera) -> None:
         """Move the view: the sensors' ``to_world``, field of view, shift and clipping, in place."""
+        self._check_open()
+        _expect(camera, Camera, "the camera")
         began = time.perf_counter()
         previous = self.description.camera
         self.description = dataclasses.replace(self.description, camera=camera)
@@ -304,16 +352,19 @@ class Session:
 
     def set_film(self, film: Film) -> None:
         """Another viewport size or filter: a rebuild (each film size is its own kernel)."""
+        self._check_open()
+        _expect(film, Film, "the film")
         if film != self.description.film:
             self._rebuild(dataclasses.replace(self.description, film=film), "film")
 
     def set_transform(self, shape_name: str, matrix) -> None:
         """Place every shape named ``shape_name`` with ``matrix`` (4×4, object → world): its vertices only."""
+        self._check_open()
         began = time.perf_counter()
-        matrix = np.asarray(matrix, dtype=np.float64)
+        matrix = affine(f"shape {shape_name!r}: matrix", matrix)
         indices = [i for i, shape in enumerate(self.description.shapes) if shape.name == shape_name]
         if not indices:
-            raise KeyError(f"no shape named {shape_name!r} in the scene")
+            raise ParameterError(f"no shape named {shape_name!r} in the scene")
         shapes = list(self.description.shapes)
         values = {}
         for i in indices:
@@ -327,10 +378,12 @@ class Session:
         """Swap the scratch set of the ``scratch_diffraction`` material ``material_key`` (its tables only)."""
         from ..bsdf import update_scratches
 
+        self._check_open()
+        _expect(scratches, ScratchSet, "the scratches")
         began = time.perf_counter()
         material = self.description.materials.get(material_key)
         if not isinstance(material, ScratchedMetal):
-            raise KeyError(f"{material_key!r} is not a scratched material of the scene")
+            raise ParameterError(f"{material_key!r} is not a scratched material of the scene")
         self._replace_material(material_key, dataclasses.replace(material, scratches=scratches))
         prefix = self._bsdf_prefix(material_key)
         if prefix is None:  # no shape uses it: nothing is rendered with it
@@ -343,10 +396,12 @@ class Session:
 
     def set_material(self, material_key: str, material) -> None:
         """Replace a material: its BSDF's parameters in place when the kind stays, else a rebuild."""
+        self._check_open()
+        _expect(material, Material.__args__, "the material")
         began = time.perf_counter()
         old = self.description.materials.get(material_key)
         if old is None:
-            raise KeyError(f"no material {material_key!r} in the scene")
+            raise ParameterError(f"no material {material_key!r} in the scene")
         self._replace_material(material_key, material)
         prefix = self._bsdf_prefix(material_key)
         if prefix is None:
@@ -363,6 +418,12 @@ class Session:
 
     def set_light(self, index: int, light) -> None:
         """Replace light ``index`` of the description: its emitter's parameters when the type stays."""
+        self._check_open()
+        count = len(self.description.lights)
+        if isinstance(index, bool) or not isinstance(index, numbers.Integral) or not 0 <= index < count:
+            raise ParameterError(f"light index must be a whole number from 0 to {count - 1}, got {index!r}"
+                                 if count else f"the scene has no lights (light index {index!r})")
+        _expect(light, LIGHT_TYPES, "the light")
         began = time.perf_counter()
         lights = list(self.description.lights)
         old, lights[index] = lights[index], light
@@ -371,7 +432,10 @@ class Session:
         self._assign_or_rebuild(values, "light", began, "light type")
 
     def set_world(self, world) -> None:
-        """Replace the world: its emitter's parameters when the type stays."""
+        """Replace the world: its emitter's parameters when the type stays (None: no world, a rebuild)."""
+        self._check_open()
+        if world is not None:
+            _expect(world, WORLD_TYPES, "the world")
         began = time.perf_counter()
         old = self.description.world
         self.description = dataclasses.replace(self.description, world=world)
@@ -380,7 +444,8 @@ class Session:
 
     def rebuild(self, description: SceneDescription) -> None:
         """Load ``description`` from scratch (what no in-place update expresses)."""
-        self._rebuild(description, "scene")
+        self._check_open()
+        self._rebuild(_expect(description, SceneDescription, "the description"), "scene")
 
     def _replace_material(self, key: str, material) -> None:
         materials = dict(self.description.materials)
@@ -406,8 +471,9 @@ class Session:
         a whole pass, or on the CPU one strip of a pass: the image (and the
         ``Progress`` object returned) changes only when a pass is complete.
         """
-        if self._closed:
-            raise RuntimeError("the session is closed")
+        self._check_open()
+        if isinstance(seconds, bool) or not isinstance(seconds, numbers.Real) or math.isnan(seconds) or seconds < 0:
+            raise ParameterError(f"step takes seconds >= 0 (inf: until finished), got {seconds!r}")
         began = time.perf_counter()
         while not self._finished:
             self._render_pass()

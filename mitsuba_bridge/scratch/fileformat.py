@@ -16,10 +16,11 @@ import numpy as np
 
 from .archive import ArchiveReader
 from ..files.atomic import write_atomically
+from ..files.regular import open_regular
 from .scratchset import (FIELD_SPECS, MAX_SCRATCHES, MAX_VERTICES, ScratchFormatError, ScratchSet,
                          validate_offsets)
 
-__all__ = ["FORMAT", "FORMAT_VERSION", "load", "save", "save_bytes", "loads", "dumps"]
+__all__ = ["FORMAT", "FORMAT_VERSION", "load", "save", "save_bytes", "loads", "dumps", "declared_counts"]
 
 FORMAT_NAME = "scratch-iridescence"
 FORMAT_VERSION = 1
@@ -40,10 +41,12 @@ def load(path) -> ScratchSet:
         offsets, unknown profile, wrong or future format, not a zip archive ...).
     FileNotFoundError
         When ``path`` does not exist.
+    NotARegularFile
+        When ``path`` is a FIFO, a device or a folder (refused at once: a FIFO's reader would wait forever).
     """
     path = Path(path)
     try:
-        with open(path, "rb") as stream:
+        with open_regular(path) as stream:
             return _read(stream)
     except ScratchFormatError as error:
         raise error.with_path(path) from None
@@ -93,17 +96,7 @@ def _write(scratches: ScratchSet, stream, compress: bool) -> None:
 
 def _read(stream) -> ScratchSet:
     with ArchiveReader(stream) as archive:
-        if "format" not in archive.members:
-            raise ScratchFormatError("missing (not a scratch-iridescence file?)", "format")
-        _check_format(archive.array("format", _format_header(archive)))
-        for key in KEYS:
-            if key not in archive.members:
-                raise ScratchFormatError("missing", key)
-        unknown = sorted(set(archive.members) - set(KEYS))
-        if unknown:
-            raise ScratchFormatError(f"unexpected key(s) {unknown} in a format-v{FORMAT_VERSION} file",
-                                     unknown[0])
-        headers = _field_headers(archive)
+        headers = _checked_headers(archive)
         # Cheap members first: offsets must fit uv before uv, the largest member, is inflated.
         offsets = _native(archive.array("offsets", headers["offsets"]))
         validate_offsets(offsets, headers["uv"].shape[0])
@@ -112,6 +105,36 @@ def _read(stream) -> ScratchSet:
             if key not in arrays:
                 arrays[key] = _native(archive.array(key, headers[key]))
     return ScratchSet(**arrays)  # validates every field
+
+
+def _checked_headers(archive: ArchiveReader) -> dict:
+    """The format string and every field's header checked (nothing but the format string inflated)."""
+    if "format" not in archive.members:
+        raise ScratchFormatError("missing (not a scratch-iridescence file?)", "format")
+    _check_format(archive.array("format", _format_header(archive)))
+    for key in KEYS:
+        if key not in archive.members:
+            raise ScratchFormatError("missing", key)
+    unknown = sorted(set(archive.members) - set(KEYS))
+    if unknown:
+        raise ScratchFormatError(f"unexpected key(s) {unknown} in a format-v{FORMAT_VERSION} file", unknown[0])
+    return _field_headers(archive)
+
+
+def declared_counts(path) -> tuple[int, int]:
+    """``(scratches, vertices)`` a scratch file declares, from its zip directory and ``.npy`` headers alone.
+
+    Nothing is inflated but the format string, so a caller can estimate what
+    loading the file will cost before it does (the add-on's Import).  Raises
+    what :func:`load` raises for a file whose headers break the format.
+    """
+    path = Path(path)
+    try:
+        with open_regular(path) as stream, ArchiveReader(stream) as archive:
+            headers = _checked_headers(archive)
+    except ScratchFormatError as error:
+        raise error.with_path(path) from None
+    return headers["offsets"].shape[0] - 1, headers["uv"].shape[0]
 
 
 def _format_header(archive: ArchiveReader):

@@ -16,12 +16,25 @@ from typing import Iterable, Sequence
 import numpy as np
 
 __all__ = ["Profile", "ScratchFormatError", "ScratchSet", "FIELD_SPECS", "MAX_SCRATCHES", "MAX_VERTICES",
+           "MAX_UV_COORDINATE", "MAX_SCRATCH_SIZE_M", "MAX_VARIATION_AMPLITUDE", "MAX_VARIATION_FREQUENCY",
            "validate_arrays", "validate_offsets"]
 
 #: Most scratches a set (and a scratch file) may hold: 56 times the paper's densest scene (300 000).
 MAX_SCRATCHES = 2**24
 #: Most polyline vertices a set may hold (their ``uv`` array is then 1 GiB).
 MAX_VERTICES = 2**26
+#: Largest |u| or |v|: UV maps span [0, 1], UDIM tiles and tiled maps tens or hundreds of units; far beyond
+#: that the renderer's tables (pieces at most 1/64 UV long, docs/bsdf.md) would need more memory than any machine.
+MAX_UV_COORDINATE = 1e4
+#: Largest width or depth (metres).  The model is for microscopic scratches, micrometres wide and nanometres
+#: deep (docs/model.md §7: the paper's widths are 0.2-6 µm); a millimetre is far beyond any of them and still
+#: catches a mistyped unit or an infinity that a user interface clamped to its largest float.
+MAX_SCRATCH_SIZE_M = 1e-3
+#: Largest relative amplitude of the width and depth noise (the supplement's largest is 1.1).
+MAX_VARIATION_AMPLITUDE = 10.0
+#: Largest noise frequency: 255 oscillations along a scratch.  The renderer cuts a varying scratch into
+#: four pieces per oscillation (``subdivide``), so the frequency bounds the pieces of every scratch.
+MAX_VARIATION_FREQUENCY = 1.0
 
 
 class Profile(enum.IntEnum):
@@ -257,15 +270,29 @@ def validate_arrays(arrays: dict[str, np.ndarray]) -> None:
             raise ScratchFormatError(
                 f"has {len(arrays[name])} entries but offsets describe {count} scratches", name)
 
-    for name in ("uv", "width", "depth", "width_variation", "depth_variation"):
+    for name in ("width", "depth", "width_variation", "depth_variation"):
         if not np.all(np.isfinite(arrays[name])):
             raise ScratchFormatError("contains NaN or infinity", name)
+    largest = float(np.abs(uv).max(initial=0.0))  # (NaN propagates: one pass checks both)
+    if not largest <= MAX_UV_COORDINATE:
+        raise ScratchFormatError(
+            "contains NaN or infinity" if not np.isfinite(largest) else
+            f"coordinates must lie within ±{MAX_UV_COORDINATE:g} UV units; largest is {largest:g}", "uv")
     for name in ("width", "depth"):
         if np.any(arrays[name] <= 0):
             raise ScratchFormatError(f"must be > 0 (metres); smallest is {arrays[name].min()!r}", name)
+        if np.any(arrays[name] > MAX_SCRATCH_SIZE_M):
+            raise ScratchFormatError(f"must be at most {MAX_SCRATCH_SIZE_M:g} m (scratches are microscopic); largest "
+                                     f"is {arrays[name].max()!r}", name)
     for name in ("width_variation", "depth_variation"):
         if np.any(arrays[name] < 0):
             raise ScratchFormatError("amplitude and frequency must be >= 0", name)
+        if len(arrays[name]) and (arrays[name][:, 0].max() > MAX_VARIATION_AMPLITUDE
+                                  or arrays[name][:, 1].max() > MAX_VARIATION_FREQUENCY):
+            raise ScratchFormatError(
+                f"amplitude must be at most {MAX_VARIATION_AMPLITUDE:g} and frequency at most "
+                f"{MAX_VARIATION_FREQUENCY:g} (255 oscillations along a scratch); largest are "
+                f"{arrays[name][:, 0].max()!r} and {arrays[name][:, 1].max()!r}", name)
     if np.any(arrays["profile"] > max(Profile)):
         unknown = sorted(set(np.unique(arrays["profile"]).tolist()) - {int(p) for p in Profile})
         raise ScratchFormatError(

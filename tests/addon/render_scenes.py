@@ -130,3 +130,13 @@ def look_at_rotation(location, target):
 
 def radians(*degrees):
     return tuple(math.radians(d) for d in degrees)
+
+
+def store_unfittable_scratches(obj) -> None:
+    """Store on ``obj`` a thousand scratches 2·10⁴ UV units long: within the scratch format's bounds, but their
+    tables would need about 298 GiB (tests/bridge/bsdf/tables/test_extreme_sets.py)."""
+    from scratch_iridescence.addon import storage
+    from scratch_iridescence.mitsuba_bridge import scratch
+
+    lines = [np.array([[-1e4, -9e3 + k], [1e4, 9e3 - k]]) for k in range(1000)]
+    storage.write_scratches(obj, scratch.ScratchSet.from_polylines(lines, width=1e-6, depth=1e-7))

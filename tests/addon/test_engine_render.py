@@ -9,7 +9,8 @@ import pytest
 
 bpy = pytest.importorskip("bpy")
 from render_scenes import (add_camera, add_light, add_plane, blender_pixel, bright_centroid, emission,  # noqa: E402
-                           material, missing_image, render_to, set_world, setup_render, textured)
+                           material, missing_image, render_to, set_world, setup_render, store_unfittable_scratches,
+                           textured)
 from scratch_iridescence.addon.render.frame import render_frame  # noqa: E402
 from scratch_iridescence.mitsuba_bridge.files.exr import read_exr  # noqa: E402
 
@@ -207,13 +208,34 @@ def test_no_camera_is_refused_before_rendering(empty_scene, tmp_path):
 
 
 def test_a_render_bigger_than_free_memory_is_refused_with_the_estimate(lit, tmp_path, monkeypatch):
-    from scratch_iridescence.mitsuba_bridge.render import memory as footprint
+    from scratch_iridescence.mitsuba_bridge.device import memory
 
-    monkeypatch.setattr(footprint, "available_memory_bytes", lambda: 10_000)  # 32 x 24 needs about 0.2 MB
+    # (as the real check reads a container's limit: tests/bridge/device/test_memory_limits.py lays out real cgroup files)
+    monkeypatch.setattr(memory, "smallest_limit", lambda **paths: memory.MemoryLimit(10_000, "cgroup v2 memory.max"))
     lit.render.filepath = str(tmp_path / "big.exr")
-    with pytest.raises(RuntimeError, match=r"a 32 x 24 render needs about 0\.\d MB of memory .* only 0\.0 MB is free"):
+    with pytest.raises(RuntimeError, match=r"a 32 x 24 render needs about 0\.\d MiB of memory .* only 0\.0 MiB is "
+                                           r"allowed \(cgroup v2 memory.max\)"):
         bpy.ops.render.render(write_still=True)
     assert not (tmp_path / "big.exr").exists()
+
+
+@pytest.mark.parametrize("where", ["before loading", "inside Mitsuba's loader"])
+def test_scratch_tables_that_cannot_fit_are_one_error_without_a_traceback(lit, tmp_path, capfd, monkeypatch, where):
+    """A set within the format's bounds whose tables no machine holds (a thousand scratches 2·10⁴ UV units long):
+    F12 says what they need, never a traceback, whether the builder's check or the plugin's own build meets it
+    (Mitsuba hands a plugin's exception on as the cause of its own)."""
+    from scratch_iridescence.mitsuba_bridge import builder
+
+    store_unfittable_scratches(next(obj for obj in lit.objects if obj.type == "MESH"))
+    if where != "before loading":
+        monkeypatch.setattr(builder, "check_tables_memory", lambda description: None)
+    lit.render.filepath = str(tmp_path / "long.exr")
+    capfd.readouterr()
+    with pytest.raises(RuntimeError, match=r"Mitsuba Scratch: building the tables of 1,000 scratches needs about "
+                                           r"298\.0 GiB of memory .* but only .* is allowed") as refused:
+        bpy.ops.render.render(write_still=True)
+    assert "rendering failed" not in str(refused.value) and "Traceback" not in capfd.readouterr().err
+    assert not (tmp_path / "long.exr").exists()
 
 
 def test_rendering_error_is_reported_not_a_black_image(empty_scene, tmp_path, monkeypatch):

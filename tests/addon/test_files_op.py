@@ -63,6 +63,50 @@ def test05_bad_files_are_refused_and_change_nothing(scratched_plane, tmp_path, c
     assert storage.raw_scratch_bytes(scratched_plane) == before
 
 
+def one_long_scratch(vertices: int) -> scratch.ScratchSet:
+    """One scratch of ``vertices`` vertices zigzagging on the plane (a small file: it compresses well)."""
+    uv = np.empty((vertices, 2))
+    uv[0::2], uv[1::2] = (0.3, 0.3), (0.7, 0.7)
+    return scratch.ScratchSet.from_polylines([uv], width=4e-6, depth=2e-7)
+
+
+def test05b_a_pathological_file_is_refused_at_once_with_an_estimate(scratched_plane, tmp_path):
+    """One scratch of 2**24 vertices (a valid file of under a megabyte) would keep Blender's UI busy for seconds:
+    refused from its headers, before anything is inflated, saying what it would cost."""
+    import time
+
+    from scratch_iridescence.addon.operators.files import MAX_IMPORT_VERTICES
+
+    path = scratch.save(one_long_scratch(1 << 24), tmp_path / "long.npz", compress=True)
+    assert path.stat().st_size < 1 << 20
+    before = storage.raw_scratch_bytes(scratched_plane)
+    started = time.perf_counter()
+    with pytest.raises(RuntimeError, match=r"long.npz holds 16,777,216 vertices in 1 scratch: importing it would keep "
+                                           r"Blender busy for about \d+ s and need about 1.5 GiB; at most "
+                                           f"{MAX_IMPORT_VERTICES:,} vertices"):
+        bpy.ops.scratch.import_file(filepath=str(path))
+    assert time.perf_counter() - started < 0.5
+    assert storage.raw_scratch_bytes(scratched_plane) == before
+
+
+def test05c_the_largest_import_stays_near_a_second_and_a_fifo_is_refused(plane, tmp_path):
+    import os
+    import time
+
+    from scratch_iridescence.addon.operators.files import MAX_IMPORT_VERTICES
+
+    path = scratch.save(one_long_scratch(MAX_IMPORT_VERTICES), tmp_path / "largest.npz", compress=True)
+    started = time.perf_counter()
+    assert bpy.ops.scratch.import_file(filepath=str(path)) == {"FINISHED"}
+    seconds = time.perf_counter() - started
+    assert storage.read_scratches(plane).vertex_count == MAX_IMPORT_VERTICES
+    assert seconds < 6.0, seconds  # (about 1.2 s on the 2-core machine; the margin is for a loaded one)
+    fifo = tmp_path / "pipe.npz"
+    os.mkfifo(fifo)
+    with pytest.raises(RuntimeError, match="is a FIFO"):
+        bpy.ops.scratch.import_file(filepath=str(fifo))
+
+
 def test06_import_warns_about_scratches_outside_the_uv_map(plane, tmp_path, capsys):
     outside = scratch.ScratchSet.from_polylines([np.array([[1.5, 1.5], [1.6, 1.6]]),
                                                  np.array([[0.2, 0.2], [0.3, 0.3]])], width=1e-6, depth=1e-7)

@@ -331,10 +331,10 @@ def test19_a_tiny_cutting_radius_is_checked_against_memory(scratched_plane, monk
     # A short stroke with a tiny radius is cheap to sample, but cutting resamples every touched scratch
     # along its whole length every radius / 4: that is estimated before it is done.
     import scratch_iridescence.addon.tools.paint as paint_module
-    from scratch_iridescence.addon.geometry.units import check_memory
+    from scratch_iridescence.mitsuba_bridge.device.memory import MemoryLimit, check_memory
 
-    def ten_megabytes(needed, what, available=None):
-        check_memory(needed, what, available=10 * 2**20)
+    def ten_megabytes(needed, what, **keywords):  # (a cgroup of 10 MiB, as the real check would read it)
+        check_memory(needed, what, **keywords, limit=MemoryLimit(10 * 2**20, "cgroup v2 memory.max"))
 
     monkeypatch.setattr(paint_module, "check_memory", ten_megabytes)
     scratches = storage.read_scratches(scratched_plane)

@@ -58,14 +58,17 @@ scene.render.filepath = output
 bpy.ops.render.render(write_still=True)
 import mitsuba, drjit
 print("MITSUBA", mitsuba.__file__)
+disk_cache = sys.modules[engine.__module__.split(".addon")[0] + ".mitsuba_bridge.bsdf.tables.disk_cache"]
+print("CACHE", disk_cache.directory(), "IN", bpy.utils.extension_path_user(engine.__module__.split(".addon")[0]))
 print("LLVM", drjit.detail.llvm_version(), os.environ.get("DRJIT_LIBLLVM_PATH"))
 """
 
 
 #: Tracked files that users do not run: the scenes (demo, paper harness) and the numerical validation
-#: with its brute-force reference and probe (blender_manifest.toml, [build] paths_exclude_pattern).
-NOT_SHIPPED = ("scenes/", "mitsuba_bridge/validation/", "tests/", "docs/", ".ci/", "Makefile", "pyproject.toml",
-               ".gitignore")
+#: with its brute-force reference and probe; the farm job definitions and the Dask cluster room, whose
+#: Dask is not bundled (blender_manifest.toml, [build] paths_exclude_pattern).
+NOT_SHIPPED = ("scenes/", "mitsuba_bridge/validation/", "mitsuba_bridge/cluster/", "farm/", "tests/", "docs/", ".ci/",
+               "Makefile", "pyproject.toml", ".gitignore")
 
 
 MANIFEST = tomllib.loads((ROOT / "blender_manifest.toml").read_text())
@@ -180,6 +183,8 @@ def test_zip_holds_the_addon_and_the_bridge_but_not_the_paper_harness(linux_zip)
     assert code == shipped, sorted(code ^ shipped)  # nothing untracked (caches, egg-info, outputs) either
     assert {name.split("-")[0] for name in names if name.startswith("wheels/")} == \
         {"wheels/mitsuba", "wheels/drjit", "wheels/openexr", "wheels/karellen_llvm_core"}
+    # Nothing of Dask (the cluster extra) nor the cluster room that needs it enters the zip.
+    assert not [name for name in names if "dask" in name or "distributed" in name or "/cluster/" in name]
 
 
 @pytest.mark.slow
@@ -207,3 +212,6 @@ def test_linux_zip_installs_enables_and_renders_with_its_own_wheels(linux_zip, t
     assert re.search(r"^LLVM \(23, \d+, \d+\) None$", log, re.M), log
     assert "LLVM probe" not in log  # the crash probe ran in a child with the bundled wheels and rendered
     assert output.is_file() and output.stat().st_size > 100
+    # the scratch tables cache lives in the extension's user folder (Blender's convention), without the environment
+    cache, _, folder = log.split("CACHE ")[1].splitlines()[0].partition(" IN ")
+    assert cache == str(Path(folder) / "tables") and folder.startswith(str(sandbox)), log

@@ -4,19 +4,20 @@ import pytest
 bpy = pytest.importorskip("bpy")
 from scratch_iridescence.addon import storage  # noqa: E402
 from scratch_iridescence.addon.geometry.surface import SurfaceError  # noqa: E402
-from scratch_iridescence.addon.geometry.units import MemoryLimitError  # noqa: E402
 from scratch_iridescence.addon.mesh import MeshError  # noqa: E402
 from scratch_iridescence.addon.operators.editing import USER_ERRORS  # noqa: E402
 from scratch_iridescence.addon.render.gather import GatherError  # noqa: E402
 from scratch_iridescence.mitsuba_bridge import scratch  # noqa: E402
 from scratch_iridescence.mitsuba_bridge.errors import ParameterError, ScratchUserError  # noqa: E402
+from scratch_iridescence.mitsuba_bridge.device.memory import NotEnoughMemory  # noqa: E402
 from scratch_iridescence.mitsuba_bridge.device.variants import VariantError  # noqa: E402
+from scratch_iridescence.mitsuba_bridge.files.regular import NotARegularFile  # noqa: E402
 
 
 def test01_every_user_error_is_a_scratch_user_error_and_keeps_its_builtin_base():
     for error, builtin in [(scratch.ScratchFormatError, ValueError), (MeshError, ValueError),
                            (SurfaceError, ValueError), (ParameterError, ValueError),
-                           (MemoryLimitError, MemoryError), (VariantError, RuntimeError),
+                           (NotEnoughMemory, MemoryError), (VariantError, RuntimeError), (NotARegularFile, OSError),
                            (GatherError, RuntimeError)]:
         assert issubclass(error, ScratchUserError) and issubclass(error, builtin), error
     assert ValueError not in USER_ERRORS and TypeError not in USER_ERRORS and Exception not in USER_ERRORS

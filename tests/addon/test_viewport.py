@@ -13,7 +13,8 @@ import pytest
 
 bpy = pytest.importorskip("bpy")
 from strokes import stroke  # noqa: E402
-from render_scenes import add_camera, add_light, material, set_world, setup_render  # noqa: E402
+from render_scenes import (add_camera, add_light, material, set_world, setup_render,  # noqa: E402
+                           store_unfittable_scratches)
 from scratch_iridescence.addon import storage  # noqa: E402
 from scratch_iridescence.addon.render import sync  # noqa: E402
 from scratch_iridescence.addon.render.gather import Warnings, gather_scene  # noqa: E402
@@ -235,6 +236,23 @@ def test10_engine_paths_build_update_draw_and_stop(studio):
     wait(lambda: viewport.latest()[4].get("last_update") == "camera" and viewport.latest()[2])
     assert viewport.latest()[4]["kernels_compiled"] == kernels  # a move and a camera: nothing compiled
     assert max(viewport.main_thread_seconds) < 5.0  # the build's gather; bench_viewport measures the real figure
+    viewport.stop()
+    assert viewport.join(timeout=30.0)
+
+
+def test10b_a_user_error_is_shown_in_the_viewport_without_a_traceback(studio, capfd):
+    """Scratch tables no machine holds (a thousand scratches 2·10⁴ UV units long, within the format's bounds):
+    the viewport shows what they need, the console no traceback (there is no bug to report), Blender goes on."""
+    pytest.importorskip("mitsuba")
+    store_unfittable_scratches(studio.plane)
+    viewport = ViewportRender()
+    capfd.readouterr()
+    viewport.view_update(view_of(studio.camera), bpy.context.evaluated_depsgraph_get())
+    wait_for(viewport, lambda: viewport.latest()[3] is not None)
+    error = viewport.latest()[3]
+    assert error.startswith("Mitsuba Scratch viewport: building the tables of 1,000 scratches needs about 298.0 GiB"), \
+        error
+    assert "Traceback" not in capfd.readouterr().err
     viewport.stop()
     assert viewport.join(timeout=30.0)
 

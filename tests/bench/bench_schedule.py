@@ -77,7 +77,7 @@ def main() -> None:
     t_schedule, image = best_of(args.repeat, lambda: render.render_image(scene, args.spp))
     with tempfile.TemporaryDirectory() as folder:
         identity = parts.RenderIdentity("bench", variant, parts.software(), args.size, args.size, args.spp, 0,
-                                        len(chunks), parts.schedule_digest(chunks))
+                                        len(chunks), parts.schedule_digest(chunks), "none")
         files = []
         count = min(4, len(chunks))
         for k in range(1, count + 1):

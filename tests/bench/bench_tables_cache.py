@@ -65,7 +65,7 @@ def main() -> int:
             result = load_once(make, args.unit_scale, args.coherent, folder)
             assert result["hits"] == 1, result
             read.append(result["seconds"])
-        size_mb = sum(p.stat().st_size for p in Path(folder).glob("*.npz")) / 2 ** 20
+        size_mb = sum(p.stat().st_size for p in Path(folder).rglob("*.scratch-tables")) / 2 ** 20
     print(f"set: {args.set or 'Fig. 9 grating'} ({'coherent' if args.coherent else 'incoherent'})")
     print(f"bsdf.load, tables built: best {min(built):.3f} s of {', '.join(f'{t:.3f}' for t in built)}")
     print(f"bsdf.load, tables read:  best {min(read):.3f} s of {', '.join(f'{t:.3f}' for t in read)}"

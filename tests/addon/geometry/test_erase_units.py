@@ -1,9 +1,9 @@
-"""Eraser hit test, unit formatting, memory checks.  (That the helpers need no Blender: tests/test_layout.py.)"""
+"""Eraser hit test, unit formatting.  (That the helpers need no Blender: tests/test_layout.py.)"""
 import numpy as np
 import pytest
 
 from scratch_iridescence.addon.geometry.erase import cut_scratches, densify, near_stroke, touched_scratches
-from scratch_iridescence.addon.geometry.units import MemoryLimitError, check_memory, format_length
+from scratch_iridescence.addon.geometry.units import format_length
 
 
 def brute_force(a, b, scratch, stroke, radius, count):
@@ -63,12 +63,6 @@ def test03_densify_spacing_and_ends():
 ])
 def test04_lengths_read_naturally(metres, text):
     assert format_length(metres) == text
-
-
-def test05_memory_check_refuses_what_does_not_fit():
-    check_memory(10, "Small", available=100)
-    with pytest.raises(MemoryLimitError, match="Big needs about 1.0 GiB of memory but only 0.0 MiB is free"):
-        check_memory(2**30, "Big", available=1000)
 
 
 def test07_near_stroke_matches_exact_distances():

@@ -65,6 +65,24 @@ def remove(relative):
     return lambda folder: (folder / relative).unlink()
 
 
+def extreme_file(field: str, value) -> bytes:
+    """The bytes of a scratch file of 50 scratches with ``field`` set to ``value`` (written by numpy, unchecked)."""
+    import io
+
+    arrays = scratch.random_scratches(50, seed=1).as_dict()
+    arrays[field] = value(arrays[field].copy())
+    stream = io.BytesIO()
+    np.savez(stream, format=np.array(scratch.FORMAT), **arrays)
+    return stream.getvalue()
+
+
+def _set(index, value):
+    def change(array):
+        array[index] = value
+        return array
+    return change
+
+
 # (name, argv with {good} {plain} {out} {dir} placeholders, folder edit or None, expected words in the error)
 CASES = [
     ("no arguments", ["render"], None, "required"),
@@ -103,6 +121,14 @@ CASES = [
     ("missing scratch file", ["render", "{case}", "-o", "{out}"], remove("scratches/plate.npz"), "does not exist"),
     ("corrupt scratch file", ["render", "{case}", "-o", "{out}"],
      write("scratches/plate.npz", b"PK\x03\x04" + bytes(300)), "scratch file"),
+    # values beyond the format's bounds (docs/scratch-format.md): refused by name, never an internal error
+    ("depth variation 1e300", ["render", "{case}", "-o", "{out}"],
+     write("scratches/plate.npz", extreme_file("depth_variation", _set((0, 0), 1e300))),
+     "amplitude must be at most 10"),
+    ("variation frequency 1e300", ["render", "{case}", "-o", "{out}"],
+     write("scratches/plate.npz", extreme_file("width_variation", _set((3, 1), 1e300))), "frequency at most 1"),
+    ("uv spread to 1e300", ["render", "{case}", "-o", "{out}"],
+     write("scratches/plate.npz", extreme_file("uv", _set((7, 0), 1e300))), "must lie within ±10000 UV units"),
     ("negative coherence diameter", ["render", "{case}", "-o", "{out}"],
      xml_edit('name="coherence_diameter" value="3e-05"', 'name="coherence_diameter" value="-3e-05"'),
      "coherence_diameter"),
@@ -237,6 +263,36 @@ def test_a_render_bigger_than_free_memory_is_refused_before_rendering(variant, t
     started = time.perf_counter()
     assert main(["render", str(tmp_path / "huge"), "-o", str(tmp_path / "out.exr"), "--spp", "4", *LLVM]) == 1
     err = capsys.readouterr().err.strip()
-    assert err.startswith("error: a 60000 x 60000 render needs about ") and "GB of memory" in err, err
-    assert "only" in err and "is free" in err and "\n" not in err
+    assert err.startswith("error: a 60000 x 60000 render needs about ") and "GiB of memory" in err, err
+    assert "only" in err and "is allowed (" in err and "\n" not in err
     assert time.perf_counter() - started < 30  # refused up front, not after allocating
+
+
+def test_a_render_too_big_for_ulimit_v_is_refused_not_a_crash(variant, tmp_path):
+    """Under ``ulimit -v 6000000`` a 10000 x 10000 render passed the old free-memory check and died with SIGSEGV."""
+    import resource
+
+    export.export_folder(simple_scene(film=S.Film(10_000, 10_000), world=S.ConstantWorld((0.5, 0.5, 0.5))),
+                         S.RenderSettings(), tmp_path / "huge")
+
+    def limit():
+        resource.setrlimit(resource.RLIMIT_AS, (6_000_000 * 1024, resource.RLIM_INFINITY))
+
+    result = subprocess.run([sys.executable, "-m", "scratch_iridescence.mitsuba_bridge", "render",
+                             str(tmp_path / "huge"), "-o", str(tmp_path / "out.exr"), "--spp", "4", *LLVM],
+                            capture_output=True, text=True, cwd=ROOT, timeout=300, preexec_fn=limit)
+    assert result.returncode == 1, result.stderr
+    err = result.stderr.strip()
+    assert err.startswith("error: a 10000 x 10000 render needs about ") and "\n" not in err, err
+    assert "is allowed (address-space limit, ulimit -v 5.7 GiB" in err and not (tmp_path / "out.exr").exists()
+
+
+def test_a_render_too_big_for_its_container_s_cgroup_is_refused(variant, tmp_path, capsys, farm_cgroup):
+    """A farm worker's cgroup v2 limit, laid out as /proc/self/cgroup and /sys/fs/cgroup are."""
+    farm_cgroup(256, 100)
+    export.export_folder(simple_scene(film=S.Film(1_500, 1_000), world=S.ConstantWorld((0.5, 0.5, 0.5))),
+                         S.RenderSettings(), tmp_path / "big")
+    assert main(["render", str(tmp_path / "big"), "-o", str(tmp_path / "out.exr"), "--spp", "4", *LLVM]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("error: a 1500 x 1000 render needs about ") and "\n" not in err, err
+    assert "but only 156.0 MiB is allowed (cgroup v2 memory.max 256.0 MiB of /farm/worker, 100.0 MiB in use)" in err

@@ -4,7 +4,7 @@ import os
 import numpy as np
 import pytest
 
-from scratch_iridescence.mitsuba_bridge.files import atomic
+from scratch_iridescence.mitsuba_bridge.files import atomic, swap
 from scratch_iridescence.mitsuba_bridge.files.exr import read_exr
 from scratch_iridescence.mitsuba_bridge.files.images import write_image
 
@@ -46,7 +46,7 @@ def test_a_png_is_a_png(variant, tmp_path):
 
 def test_a_folder_swap_that_fails_midway_puts_the_old_entries_back(tmp_path, monkeypatch):
     folder = tmp_path / "export"
-    with atomic.replacing_folder(folder, ("scene.xml", "meshes")) as building:
+    with swap.replacing_folder(folder, ("scene.xml", "meshes")) as building:
         (building / "scene.xml").write_text("old")
         (building / "meshes").mkdir()
         (building / "meshes" / "a.ply").write_text("old mesh")
@@ -60,7 +60,7 @@ def test_a_folder_swap_that_fails_midway_puts_the_old_entries_back(tmp_path, mon
 
     monkeypatch.setattr(os, "replace", failing_replace)
     with pytest.raises(OSError, match="unplugged"):
-        with atomic.replacing_folder(folder, ("scene.xml", "meshes"), last="scene.xml") as building:
+        with swap.replacing_folder(folder, ("scene.xml", "meshes"), last="scene.xml") as building:
             (building / "scene.xml").write_text("new")
             (building / "meshes").mkdir()
     assert (folder / "scene.xml").read_text() == "old" and (folder / "meshes" / "a.ply").read_text() == "old mesh"

@@ -9,7 +9,7 @@ import stat
 
 import pytest
 
-from scratch_iridescence.mitsuba_bridge.files import atomic
+from scratch_iridescence.mitsuba_bridge.files import atomic, swap
 
 
 @pytest.fixture
@@ -40,7 +40,7 @@ def test_new_files_and_folders_follow_the_umask_which_is_never_set(tmp_path, mon
     atomic.write_atomically(tmp_path / "a.bin", lambda stream: stream.write(b"data"))
     with atomic.replacing_file(tmp_path / "b.exr") as temporary:
         temporary.write_bytes(b"image")
-    with atomic.replacing_folder(tmp_path / "export", ("meshes",)) as building:
+    with swap.replacing_folder(tmp_path / "export", ("meshes",)) as building:
         (building / "meshes").mkdir()
     assert mode(tmp_path / "a.bin") == mode(tmp_path / "b.exr") == 0o640
     assert mode(tmp_path / "export" / "meshes") == 0o750

@@ -1,6 +1,9 @@
-"""The memory estimate of a render (a pure function) and the refusal when it exceeds what is free."""
+"""The memory estimate of a render (a pure function) and the refusal when it exceeds what is allowed (the limits
+themselves: tests/bridge/device/test_memory.py)."""
 import pytest
 
+from scratch_iridescence.mitsuba_bridge.device.memory import MemoryLimit
+from scratch_iridescence.mitsuba_bridge.errors import ScratchUserError
 from scratch_iridescence.mitsuba_bridge.render import memory as footprint, schedule
 
 
@@ -22,16 +25,23 @@ def test_more_samples_per_chunk_mean_more_samples_in_flight():
 
 def test_a_render_that_does_not_fit_is_refused_with_both_figures():
     chunks = schedule.sample_schedule(64, 10_000 * 10_000)
+    cgroup = MemoryLimit(8 * 2 ** 30, "cgroup v2 memory.max 8.0 GiB of /farm, 0.0 MiB in use")
     with pytest.raises(footprint.NotEnoughMemory) as refused:
-        footprint.check_memory(10_000, 10_000, chunks, available=8_000_000_000)
+        footprint.check_memory(10_000, 10_000, chunks, limit=cgroup)
     message = str(refused.value)
-    assert message.startswith("a 10000 x 10000 render needs about 37.20 GB of memory (film 3.60 GB, "
-                              "accumulation 32.00 GB,")
-    assert "only 8.00 GB is free" in message and "100,000,000 samples in flight" in message
+    assert message.startswith("a 10000 x 10000 render needs about 34.6 GiB of memory (film 3.4 GiB, "
+                              "accumulation 29.8 GiB,")
+    assert "but only 8.0 GiB is allowed (cgroup v2 memory.max 8.0 GiB of /farm" in message
+    assert "100,000,000 samples in flight" in message and message.endswith("render a crop region")
+    assert isinstance(refused.value, MemoryError) and isinstance(refused.value, ScratchUserError)
     assert footprint.check_memory(1920, 1080, schedule.sample_schedule(64, 1920 * 1080),
-                                  available=8_000_000_000).total_bytes < 2e9
+                                  limit=cgroup).total_bytes < 2e9
 
 
-def test_free_memory_is_known_on_this_machine():
-    free = footprint.available_memory_bytes()
-    assert free is None or 1e6 < free < 1e15
+def test_an_interactive_session_s_films_are_estimated_too():
+    assert footprint.estimate_session_bytes(100, 50) == 5000 * (36 + 48)
+    assert footprint.estimate_session_bytes(100, 50, preview_divisor=4, strip_pixels=1000) == \
+        (5000 + 25 * 13 + 1000) * 36 + 5000 * 48
+    with pytest.raises(footprint.NotEnoughMemory, match=r"a 100000 x 100000 interactive render needs about "
+                                                        r"782.3 GiB of memory but only 16.0 GiB is allowed \(free"):
+        footprint.check_session_memory(100_000, 100_000, limit=MemoryLimit(2 ** 34, "free memory, MemAvailable"))

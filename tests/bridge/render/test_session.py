@@ -132,7 +132,7 @@ def test06_moved_object_gives_the_rebuilt_image(session):
     description = plate_scene()
     shape = dataclasses.replace(description.shapes[0], to_world=matrix)
     assert np.array_equal(image, rebuilt_image(dataclasses.replace(description, shapes=(shape,))))
-    with pytest.raises(KeyError):
+    with pytest.raises(ValueError, match="no shape named 'no such shape'"):
         session.set_transform("no such shape", matrix)
 
 

@@ -74,14 +74,15 @@ def scratch_sets(draw):
     counts = draw(st.lists(st.integers(2, 6), min_size=n, max_size=n))
     finite = st.floats(-1e3, 1e3, allow_nan=False)
     positive = st.floats(1e-12, 1e-3, allow_nan=False, exclude_min=False)
-    nonneg = st.floats(0, 10, allow_nan=False)
+    amplitude = st.floats(0, 10, allow_nan=False)  # (the format's bounds: docs/scratch-format.md)
+    frequency = st.floats(0, 1, allow_nan=False)
     polylines = [np.array(draw(st.lists(st.tuples(finite, finite), min_size=c, max_size=c)))
                  for c in counts]
     per = lambda strategy: draw(st.lists(strategy, min_size=n, max_size=n))
     return ScratchSet.from_polylines(
         polylines, width=per(positive), depth=per(positive), profile=per(st.integers(0, 1)),
-        width_variation=[(a, f) for a, f in zip(per(nonneg), per(nonneg))],
-        depth_variation=[(a, f) for a, f in zip(per(nonneg), per(nonneg))],
+        width_variation=[(a, f) for a, f in zip(per(amplitude), per(frequency))],
+        depth_variation=[(a, f) for a, f in zip(per(amplitude), per(frequency))],
         seed=per(st.integers(0, 2**32 - 1)))
 
 
@@ -124,6 +125,17 @@ def _mutations():
         ("zero width", "width", set_("width", np.array([0.0, 1e-6]))),
         ("negative depth", "depth", set_("depth", np.array([1e-7, -1e-7]))),
         ("negative variation", "width_variation", set_("width_variation", np.array([[-0.1, 0.0], [0.0, 0.0]]))),
+        # the format's bounds (docs/scratch-format.md): beyond them no renderer's tables fit any machine
+        ("uv spread to 1e300", "uv",
+         set_("uv", lambda a: np.where(np.arange(10).reshape(5, 2) == 3, 1e300, a["uv"]))),
+        ("uv beyond 1e4", "uv", set_("uv", lambda a: a["uv"] - 10_001.0)),
+        ("depth variation amplitude 1e300", "depth_variation",
+         set_("depth_variation", np.array([[1e300, 0.04], [0.0, 0.0]]))),
+        ("width variation frequency 1e300", "width_variation",
+         set_("width_variation", np.array([[1.1, 1e300], [0.0, 0.0]]))),
+        ("variation frequency 1.5", "depth_variation", set_("depth_variation", np.array([[1.1, 1.5], [0.0, 0.0]]))),
+        ("width of a centimetre", "width", set_("width", np.array([1e-2, 1e-6]))),
+        ("depth 1e300", "depth", set_("depth", np.array([1e-7, 1e300]))),
         ("offsets not starting at 0", "offsets", set_("offsets", np.array([1, 2, 5]))),
         ("offsets past the end", "offsets", set_("offsets", np.array([0, 2, 6]))),
         ("scratch of one vertex", "offsets", set_("offsets", np.array([0, 1, 5]))),
