@@ -37,7 +37,7 @@ CASES = {
 }
 #: footprint radii in σ: about the window, several windows, far wider (30σ: crossing pairs left out, §11.5)
 RADII_SIGMAS = (1.0, 4.0, 12.0, 30.0)
-INCIDENCES_DEG = (20.0, 50.0)
+INCIDENCES_DEG = (20.0, 50.0)  #: (50°: under the slow marker, `make test-slow`)
 
 
 def footprint_covariance(radius_um, wi):
@@ -102,7 +102,8 @@ def filtered_bsdf(scratches, radius_um, **kwargs):
                              footprint_width=radius_um * 1e-3, **kwargs)
 
 
-@pytest.mark.parametrize("incidence", INCIDENCES_DEG)
+@pytest.mark.parametrize("incidence", [INCIDENCES_DEG[0]] + [pytest.param(i, marks=pytest.mark.slow)
+                                                               for i in INCIDENCES_DEG[1:]])
 @pytest.mark.parametrize("radius_sigmas", RADII_SIGMAS)
 @pytest.mark.parametrize("name", list(CASES))
 def test01_the_filtered_brdf_is_the_point_brdf_averaged_over_the_footprint(name, radius_sigmas, incidence):
