@@ -48,15 +48,19 @@ def zero_footprint(value_type):
     return Footprint(zero, zero, zero)
 
 
-def footprint_of(si, angle, width, micrometres_per_unit) -> Footprint:
+def footprint_of(si, angle, width, micrometres_per_unit, max_radius_um=None) -> Footprint:
     """The footprint of the sample that reached ``si`` (``si.t``: scene units from the ray's origin).
 
     ``angle`` (radians) and ``width`` (scene units) per sample; 0 and 0 give the point (no filtering).
+    ``max_radius_um``: the radius is capped there (a smaller footprint only filters less: the image
+    converges to the same one; it bounds the pieces one evaluation visits, docs/model.md §11.8).
     """
     # (an interaction built by hand may carry t = ∞: the cone then plays no part, the width still does)
     cone = dr.select(angle > 0.0, angle * dr.maximum(si.t, 0.0), 0.0)
     radius = (cone + width) * micrometres_per_unit
     radius = dr.select(dr.isfinite(radius), radius, 0.0)
+    if max_radius_um is not None:
+        radius = dr.minimum(radius, max_radius_um)
     wi = si.wi
     cos_i = dr.maximum(dr.abs(wi.z), 1.0 / MAX_STRETCH)
     r2 = radius * radius

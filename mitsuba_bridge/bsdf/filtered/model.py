@@ -39,6 +39,10 @@ from .footprint import Footprint, footprint_of, projected
 
 __all__ = ["FilteredModel", "POINT_BELOW_SIGMAS", "REACH_STDS", "RECENT_PIECES", "filtered_window_energy"]
 
+#: A sample's footprint radius is capped at this many σ (no level of detail yet: the cap bounds the pieces an
+#: evaluation visits; a smaller footprint only filters less, docs/model.md §11.8).  The demo plate at 240 × 150
+#: and 16 spp (bench_convergence) has radii of about 18σ, under it.
+MAX_RADIUS_SIGMAS = 32.0
 #: Footprints whose larger standard deviation is below this many σ take the point model.
 POINT_BELOW_SIGMAS = 0.05
 #: Pieces farther than this many standard deviations of the footprint widened by the window are left out
@@ -77,7 +81,8 @@ class FilteredModel(Model):
     # ------------------------------------------------------------ helpers
     def footprint(self, si) -> Footprint:
         """The footprint of the sample at ``si`` (µm², local frame)."""
-        return footprint_of(si, self.footprint_angle, self.footprint_width, self.micrometres_per_unit)
+        return footprint_of(si, self.footprint_angle, self.footprint_width, self.micrometres_per_unit,
+                            MAX_RADIUS_SIGMAS * self.sigma)
 
     def _is_point(self, footprint: Footprint):
         return footprint.largest_variance < (POINT_BELOW_SIGMAS * self.sigma) ** 2
