@@ -69,6 +69,12 @@ class SCRATCH_PG_render(bpy.types.PropertyGroup):
                                                     "Apple silicon)", 3),
                ("llvm_ad_spectral", "CPU (LLVM)", "Mitsuba's llvm_ad_spectral variant (vectorised CPU)", 2)],
         default="auto", update=_tag_scene)
+    footprint_filter: BoolProperty(
+        name="Footprint Filter",
+        description="Average each scratched surface over the patch a sample stands for (its share of the "
+                    "pixel), so that glints settle in a few samples; the image converges to the same one. "
+                    "Off: every sample sees one point, as the paper renders (for validation)",
+        default=True, update=_tag_scene)
     film_filter: EnumProperty(
         name="Pixel Filter", description="Reconstruction filter of the film",
         items=_FILTER_ITEMS, default="box", update=_tag_scene)

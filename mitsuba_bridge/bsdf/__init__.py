@@ -47,7 +47,7 @@ def _construct(cls, props):
 def plugin_dict(scratches=None, *, filename=None, coherence_diameter=DEFAULT_COHERENCE_DIAMETER_M,
                 unit_scale=1.0, material=DEFAULT_MATERIAL, eta=None, k=None, diffuse_reflectance=None,
                 coherent=True, depth_phase=DEFAULT_DEPTH_PHASE, crossings=DEFAULT_CROSSINGS,
-                cell_size=0.0) -> dict:
+                cell_size=0.0, footprint_filter=False, footprint_angle=0.0, footprint_width=0.0) -> dict:
     """The ``mi.load_dict`` dictionary of a ``scratch_diffraction`` BSDF.
 
     Parameters
@@ -81,6 +81,11 @@ def plugin_dict(scratches=None, *, filename=None, coherence_diameter=DEFAULT_COH
     cell_size : float
         UV size of the lookup grid's cells (rounded up to a power of two); 0,
         the default, picks it from the scratch density.  Written only when set.
+    footprint_filter : bool
+        Average the BRDF over each camera sample's footprint (docs/model.md §11);
+        ``footprint_angle`` (radians of a sample's cone) and ``footprint_width``
+        (scene units, orthographic cameras) size it, 0 and 0 a point.  Written
+        only when on.
 
     Needs an active Mitsuba variant (the tensors belong to it).
     """
@@ -96,6 +101,9 @@ def plugin_dict(scratches=None, *, filename=None, coherence_diameter=DEFAULT_COH
         result["crossings"] = str(crossings)
     if cell_size:
         result["cell_size"] = float(cell_size)
+    if footprint_filter:
+        result.update(footprint_filter=True, footprint_angle=float(footprint_angle),
+                      footprint_width=float(footprint_width))
     if eta is not None:
         result["eta"], result["k"] = _spectrum(eta), _spectrum(k)
     else:

@@ -41,7 +41,8 @@ _counts = {"left": 0, "taken": 0, "refused": 0}
 def _fields(si) -> tuple:
     """The interaction's arrays that a window search reads (and ``wi``)."""
     frame = si.sh_frame
-    return (si.uv.x, si.uv.y, *si.dp_du, *si.dp_dv, *frame.s, *frame.t, *si.wi)
+    # (si.t: the footprint filter's search reaches as far as the sample's footprint, docs/model.md §11)
+    return (si.uv.x, si.uv.y, *si.dp_du, *si.dp_dv, *frame.s, *frame.t, *si.wi, si.t)
 
 
 def _indices(arrays) -> tuple | None:

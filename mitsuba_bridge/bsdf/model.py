@@ -366,15 +366,22 @@ class Model:
 
     def _value(self, si, wo, inv_wavelength, lobe, a, b, has_glossy, has_diffuse, active):
         """f_r cos θ_o from the summed field (a, b) (``inv_wavelength``: 1/λ per wavelength, µm⁻¹)."""
+        intensity = None
+        if has_glossy:
+            if self.coherent:
+                intensity = Cx(a, b).abs2()
+            else:  # a: Σ|S'_k|², b: Σ ε_k (scratch area in the squared window)
+                covered = dr.minimum(b * dr.rcp(math.pi * self.sigma * self.sigma), 1.0)
+                intensity = lobe * lobe * (1.0 - covered) + a
+        return self._value_of_intensity(si, wo, inv_wavelength, intensity, has_glossy, has_diffuse, active)
+
+    def _value_of_intensity(self, si, wo, inv_wavelength, intensity, has_glossy, has_diffuse, active):
+        """f_r cos θ_o from the intensity E|U|² (per wavelength; the footprint filter's average too)."""
         sigma = self.sigma
         value = dr.zeros(mi.Spectrum)
         if has_glossy:
             inv_window_area = dr.rcp(math.pi * sigma * sigma)  # 1/(πσ²), µm⁻²
-            if self.coherent:
-                intensity = Cx(a, b).abs2()
-            else:  # a: Σ|S'_k|², b: Σ ε_k (scratch area in the squared window)
-                covered = dr.minimum(b * inv_window_area, 1.0)
-                intensity = lobe * lobe * (1.0 - covered) + a
+
             def reflected(intensity):
                 half = dr.normalize(si.wi + wo)
                 fresnel = self._reflectance(si, dr.dot(si.wi, half), active)
@@ -414,15 +421,8 @@ class Model:
         kept_count = REPLAY_PIECES if replays else 0
 
         def body(segment, piece, state):
-            energy, chosen, u, count, kept = state
             weight = sampling.selection_weight(segment, kz0 * segment.depth, sigma, self.coherent)
-            energy = energy + weight
-            p = dr.select(energy > 0.0, weight / energy, 0.0)
-            pick = u < p
-            chosen = dr.select(pick, piece, chosen)
-            u = dr.select(pick, u / dr.maximum(p, 1e-30), (u - p) / dr.maximum(1.0 - p, 1e-30))
-            kept = tuple(dr.select(count == k, piece, kept[k]) for k in range(kept_count))
-            return energy, chosen, dr.clip(u, 0.0, 0.99999994), count + 1, kept
+            return reservoir_step(weight, piece, state, kept_count)
 
         energy0, scanning = dr.zeros(mi.Float), active & has_glossy
         if search is None:
@@ -446,6 +446,23 @@ class Model:
             reused = dr.select(second, u / dr.maximum(p_b, 1e-30), (u - p_b) / dr.maximum(1.0 - p_b, 1e-30))
             u = dr.select(family.kink, dr.clip(reused, 0.0, 0.99999994), u)
 
+        wo, diffuse, active = self._draw_direction(
+            si, jac, chosen, energy, u, sample2, lam0, kz0, has_glossy, has_diffuse, active, family,
+            (lambda: self._family_line(family, second)) if family is not None else None, "scratch_line_sample")
+
+        # the same window as above: where it held no piece, the evaluation need not search again, and
+        # where it held a few, it replays them
+        value, pdf = self.evaluate(si, wo, has_glossy=has_glossy, has_diffuse=has_diffuse, active=active,
+                                   pieces_in_window=count > 0, family=family,
+                                   found=(count, kept) if replays else None)
+        return wo, pdf, value, diffuse
+
+    def _draw_direction(self, si, jac, chosen, energy, u, sample2, lam0, kz0, has_glossy, has_diffuse, active,
+                        family, family_line, label):
+        """``(wo, diffuse chosen, active)`` of :meth:`sample` once a piece ``chosen`` (or a ``family``, whose
+        tracks' line ``family_line()`` gives) is drawn from the pieces' total selection weight ``energy``,
+        ``u`` the left-over uniform (the footprint filter draws the same way, over its footprint)."""
+        wi, sigma = si.wi, self.sigma
         # ---- strategy from the left-over uniform (independent of the segment drawn)
         q_d, q_s, q_m = self._strategy_weights(si, energy, wi.z, has_glossy, has_diffuse, active)
         diffuse = active & (u < q_d)
@@ -456,7 +473,7 @@ class Model:
             segment = segment_at(self.grid, jac, chosen, scratch & ~family.eligible if family is not None else scratch)
             if family is not None:  # exactly the line the density of evaluate() assumes
                 segment = SegmentGeometry(*(dr.select(family.eligible, mine, theirs)
-                                            for mine, theirs in zip(self._family_line(family, second), segment)))
+                                            for mine, theirs in zip(family_line(), segment)))
             lo, hi = self._band(segment, wi, lam0)
             nu_par = sampling.sample_along(sample2.x, sigma)
             nu_perp = sampling.sample_across(sample2.y, segment, kz0 * segment.depth, lo, hi)
@@ -465,8 +482,7 @@ class Model:
         # ---- ξ: the mirror lobe, or a scratch line (its gathers and inverse CDFs only in SIMD packets
         # where some lane drew one: on a sparsely scratched surface most have nothing in reach)
         mirror_x, mirror_y = sampling.sample_mirror(sample2, sigma)
-        xi_x, xi_y = dr.if_stmt((mirror_x, mirror_y), scratch, scratch_line, lambda x, y: (x, y),
-                                label="scratch_line_sample")
+        xi_x, xi_y = dr.if_stmt((mirror_x, mirror_y), scratch, scratch_line, lambda x, y: (x, y), label=label)
 
         # ---- ξ → direction; diffuse base: cosine hemisphere
         out_x = lam0 * xi_x - wi.x
@@ -474,14 +490,21 @@ class Model:
         sin2 = out_x * out_x + out_y * out_y
         specular = mi.Vector3f(out_x, out_y, dr.safe_sqrt(1.0 - sin2))
         wo = dr.select(diffuse, mi.warp.square_to_cosine_hemisphere(sample2), specular)
-        active &= diffuse | (sin2 < 1.0)
+        return wo, diffuse, active & (diffuse | (sin2 < 1.0))
 
-        # the same window as above: where it held no piece, the evaluation need not search again, and
-        # where it held a few, it replays them
-        value, pdf = self.evaluate(si, wo, has_glossy=has_glossy, has_diffuse=has_diffuse, active=active,
-                                   pieces_in_window=count > 0, family=family,
-                                   found=(count, kept) if replays else None)
-        return wo, pdf, value, diffuse
+
+def reservoir_step(weight, piece, state, kept_count: int):
+    """One piece of :meth:`Model.sample`'s draw in proportion to the pieces' weights (a reservoir of one):
+    ``state = (energy, chosen, u, count, kept)``, ``u`` rescaled to stay uniform, the first ``kept_count``
+    pieces kept for the evaluation's replay."""
+    energy, chosen, u, count, kept = state
+    energy = energy + weight
+    p = dr.select(energy > 0.0, weight / energy, 0.0)
+    pick = u < p
+    chosen = dr.select(pick, piece, chosen)
+    u = dr.select(pick, u / dr.maximum(p, 1e-30), (u - p) / dr.maximum(1.0 - p, 1e-30))
+    kept = tuple(dr.select(count == k, piece, kept[k]) for k in range(kept_count))
+    return energy, chosen, dr.clip(u, 0.0, 0.99999994), count + 1, kept
 
 
 class _Frequencies(NamedTuple):

@@ -51,3 +51,14 @@ CROSSING_ITEMS = (
                                      "V-grooves most)"),
 )
 CROSSINGS = tuple(code for code, _, _ in CROSSING_ITEMS)
+#: The footprint filter (docs/model.md §11.2): each camera sample averages the BSDF over a Gaussian of
+#: this many times its share of the pixel (pixel / √spp) as standard deviation.
+FOOTPRINT_SCALE = 0.5
+
+
+def sample_footprint(pixel_angle: float, pixel_width: float, spp_total: float) -> tuple[float, float]:
+    """``(footprint_angle, footprint_width)`` of one sample of a render of ``spp_total`` samples per pixel:
+    a pixel's angle (radians, perspective cameras) and width (scene units, orthographic ones) divided
+    among its samples and scaled by :data:`FOOTPRINT_SCALE` (docs/model.md §11.2)."""
+    scale = FOOTPRINT_SCALE / max(float(spp_total), 1.0) ** 0.5
+    return pixel_angle * scale, pixel_width * scale

@@ -13,10 +13,14 @@ import mitsuba as mi
 from .. import scratch
 from . import handoff, parameters, persistent, tensors
 from .fresnel import ConductorSpectra, material_textures
+from .filtered.model import FilteredModel
+from .filtered.single import NARROW_ACROSS_SIGMAS
 from .lookup import Grid
 from .model import Model
 from .tables import disk_cache, grid
 from .tables.incremental import update_tables
+from .tables.lines import line_continuation
+from .tables.references import aligned_array
 from .tables.scan import ScanArrays
 
 __all__ = ["plugin_class", "MANUAL"]
@@ -189,6 +193,13 @@ def _positive(props, name, default):
     return value
 
 
+def _non_negative(props, name):
+    value = float(props.get(name, 0.0))
+    if not value >= 0.0 or value == float("inf"):
+        raise ValueError(f"parameter '{name}' must be a finite value >= 0, got {value!r}")
+    return value
+
+
 def _make_class() -> type:
     class ScratchDiffraction(mi.BSDF):
         __doc__ = MANUAL
@@ -211,6 +222,11 @@ def _make_class() -> type:
             if self.depth_phase not in parameters.DEPTH_PHASES:
                 raise ValueError(f"parameter 'depth_phase' must be one of {', '.join(parameters.DEPTH_PHASES)}, "
                                  f"got {self.depth_phase!r}")
+            # the footprint filter (docs/model.md §11): compiled only where asked for; the renderer sets the
+            # sample's cone (footprint_angle, radians) and orthographic width (footprint_width, scene units)
+            self.footprint_filter = bool(props.get("footprint_filter", False))
+            self.footprint_angle = dr.opaque(mi.Float, _non_negative(props, "footprint_angle"))
+            self.footprint_width = dr.opaque(mi.Float, _non_negative(props, "footprint_width"))
             self.crossings = str(props.get("crossings", parameters.DEFAULT_CROSSINGS))
             if self.crossings not in parameters.CROSSINGS:
                 raise ValueError(f"parameter 'crossings' must be one of {', '.join(parameters.CROSSINGS)}, "
@@ -267,6 +283,9 @@ def _make_class() -> type:
             self.table_cache, self.grid = self.shared_tables.value
             self.tables = self.table_cache.tables
             self.scratch_count = scratches.count
+            # the filter's runs (every piece of a straight line, whatever its depth): built with the tables' rows
+            self.line_runs = aligned_array(mi.Float, line_continuation(self.tables).ravel()) \
+                if self.footprint_filter else None
             self._rebuild_model()
 
         @property
@@ -279,9 +298,18 @@ def _make_class() -> type:
             # (rebuilt here: a parameter update may have changed the spectra's values)
             spectra = ConductorSpectra.of(self.eta, self.k) \
                 if self.eta is not None and ConductorSpectra.matches(self.eta, self.k) else None
-            self.model = Model(grid=self.grid, sigma=sigma, micrometres_per_unit=scale,
-                               coherent=self.coherent, eta=self.eta, k=self.k, spectra=spectra, diffuse=self.diffuse,
-                               depth_phase=self.depth_phase, height_field=self._height_field)
+            common = dict(grid=self.grid, sigma=sigma, micrometres_per_unit=scale, coherent=self.coherent,
+                          eta=self.eta, k=self.k, spectra=spectra, diffuse=self.diffuse, depth_phase=self.depth_phase,
+                          height_field=self._height_field)
+            if self.footprint_filter:
+                # (a Python choice: two nodes across where every groove is at most 1.2σ wide, docs/model.md §11.3)
+                widest = float(self.tables.segments[:self.tables.piece_count, 6].max(initial=0.0))
+                narrow = widest <= NARROW_ACROSS_SIGMAS * dr.slice(sigma)
+                self.model = FilteredModel(**common, footprint_angle=self.footprint_angle,
+                                           footprint_width=self.footprint_width, line_continuation=self.line_runs,
+                                           across_nodes=2 if narrow else 3)
+            else:
+                self.model = Model(**common)
 
         # ------------------------------------------------------ interface
         def _lobes(self, ctx):
@@ -331,6 +359,8 @@ def _make_class() -> type:
                 callback.put(key, value, flags)
             callback.put("coherence_diameter", self.coherence_diameter, flags)
             callback.put("unit_scale", self.unit_scale, flags)
+            callback.put("footprint_angle", self.footprint_angle, flags)
+            callback.put("footprint_width", self.footprint_width, flags)
             for name, texture in (("eta", self.eta), ("k", self.k), ("diffuse_reflectance", self.diffuse)):
                 if texture is not None:
                     callback.put(name, texture, mi.ParamFlags.Differentiable)
@@ -364,7 +394,8 @@ def _make_class() -> type:
                     f"diffuse={'yes' if self.diffuse is not None else 'no'}, "
                     f"{'coherent' if self.coherent else 'incoherent'}, depth_phase={self.depth_phase}, "
                     f"crossings={self.crossings} ({t.crossing_count} pairs), "
-                    f"periodic families={self.grid.family_count}, kinks={self.grid.kink_count}]")
+                    f"periodic families={self.grid.family_count}, kinks={self.grid.kink_count}, "
+                    f"footprint filter={'on' if self.footprint_filter else 'off'}]")
 
     ScratchDiffraction.__name__ = "ScratchDiffraction"
     return ScratchDiffraction

@@ -11,7 +11,7 @@ import contextlib
 from collections import Counter
 
 from ..scene import Interface, Mask, RenderSettings, SceneDescription, Transparent, walk_materials
-from .camera import film_dict, integrator_dict, sensor_dict, window_camera, with_data_passes
+from .camera import film_dict, footprint_settings, integrator_dict, sensor_dict, window_camera, with_data_passes
 from .lights import light_dict, world_dict
 from .materials import add_weights, bsdf_dict, emitter_dict
 from .resources import InMemory, load_dict, safe_name
@@ -49,6 +49,7 @@ def scene_dict(description: SceneDescription, settings: RenderSettings, resource
     everything else, the camera included.
     """
     resources = InMemory() if resources is None else resources
+    resources.footprint = footprint_settings(description.camera, description.film, settings)
     shared = resources.shares_materials
     world_medium = None
     if description.world_volume is not None and not description.world_volume.empty:

@@ -6,10 +6,11 @@ import math
 
 import numpy as np
 
+from ..bsdf.parameters import sample_footprint
 from ..scene import Camera, Film, RenderSettings
 from .transform import FLIP_XZ, scale, to_mitsuba, translate
 
-__all__ = ["sensor_dict", "integrator_dict", "film_dict", "window_camera", "with_data_passes"]
+__all__ = ["sensor_dict", "integrator_dict", "film_dict", "window_camera", "with_data_passes", "footprint_settings"]
 
 
 def film_dict(film: Film) -> dict:
@@ -68,6 +69,21 @@ def sensor_dict(camera: Camera, film: Film, settings: RenderSettings, *, medium=
     if medium is not None:
         sensor["medium"] = medium
     return sensor
+
+
+def footprint_settings(camera: Camera, film: Film, settings: RenderSettings) -> dict:
+    """The scratch BSDFs' footprint filter for a render of ``settings.spp`` through ``camera`` onto ``film``
+    (docs/model.md §11.2): ``plugin_dict`` keywords, empty when the filter is off.  The renderer sets the
+    footprint again for the samples it actually renders (:func:`...render.filtering.set_footprint`); these
+    values make an exported scene.xml render alike in plain Mitsuba."""
+    if not settings.footprint_filter:
+        return {}
+    if camera.projection == "perspective":
+        pixel = (2.0 * math.tan(math.radians(camera.fov_x_deg) / 2.0) / film.width, 0.0)
+    else:
+        pixel = (0.0, camera.ortho_width / film.width)
+    angle, width = sample_footprint(*pixel, settings.spp)
+    return {"footprint_filter": True, "footprint_angle": angle, "footprint_width": width}
 
 
 def window_camera(camera: Camera, film: Film, window: tuple[int, int, int, int]) -> tuple[Camera, Film]:

@@ -100,6 +100,8 @@ class InMemory:
     """Resources for rendering straight from memory."""
 
     shares_materials = False  #: each material's BSDF is loaded once and handed to its shapes
+    #: ``plugin_dict`` keywords of the render's footprint filter (:func:`.camera.footprint_settings`)
+    footprint: dict = {}
 
     def __init__(self):
         self._bsdfs: dict[str, object] = {}
@@ -133,7 +135,7 @@ class InMemory:
         from ..bsdf import plugin_dict
 
         scratches = material.scratches if material.scratches.count else None  # None: unscratched metal
-        return plugin_dict(scratches, **scratch_plugin_settings(material))
+        return plugin_dict(scratches, **scratch_plugin_settings(material), **self.footprint)
 
     def medium(self, key: str, medium: dict):
         """The medium ``medium`` loaded once per ``key`` (the camera and every shape in it share the object)."""

@@ -128,7 +128,7 @@ def render_command(args) -> int:
           flush=True)
     refresh, progress = Refresh(1.0), None
     try:
-        for progress in render_chunks(scene, selected, samples):
+        for progress in render_chunks(scene, selected, samples, render_spp=spp):
             if not args.quiet and refresh.due(progress):
                 print(f"  {progress.spp_done:6d}/{samples} spp  {100 * progress.fraction:5.1f} %  "
                       f"{progress.seconds:7.1f} s", flush=True)

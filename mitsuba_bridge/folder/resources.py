@@ -26,6 +26,8 @@ class ToFolder:
     """Resources for a self-contained export folder (paths in the dict are relative to it)."""
 
     shares_materials = True  #: materials are top-level entries of the XML that shapes reference
+    #: ``plugin_dict`` keywords of the render's footprint filter (:func:`...builder.camera.footprint_settings`)
+    footprint: dict = {}
 
     def __init__(self, folder):
         self.folder = Path(folder)
@@ -63,10 +65,10 @@ class ToFolder:
 
     def scratch_bsdf(self, material: ScratchedMetal, *, key: str) -> dict:
         if not material.scratches.count:
-            return plugin_dict(**scratch_plugin_settings(material))
+            return plugin_dict(**scratch_plugin_settings(material), **self.footprint)
         relative = self._unique("scratches", key, ".npz")
         scratch_io.save(material.scratches, self.folder / relative)
-        return plugin_dict(filename=relative, **scratch_plugin_settings(material))
+        return plugin_dict(filename=relative, **scratch_plugin_settings(material), **self.footprint)
 
     def medium(self, key: str, medium: dict) -> dict:
         """The medium, written where it is used (the XML repeats it; every copy is the same medium)."""

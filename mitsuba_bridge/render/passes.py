@@ -113,10 +113,12 @@ def film_pixels(scene) -> int:
 
 
 def render_chunks(scene, chunks: Iterable[Chunk], spp_total: int, *, freeze: bool = True,
-                  overlap: bool | None = None) -> Iterator[Progress]:
+                  overlap: bool | None = None, render_spp: int | None = None) -> Iterator[Progress]:
     """Render the given ``chunks`` (consecutive ones of a schedule) in order and yield the running mean after each.
 
-    ``spp_total`` is the sum of their spp (for ``fraction``).  Stop iterating to
+    ``spp_total`` is the sum of their spp (for ``fraction``); ``render_spp`` the whole render's samples per
+    pixel where these chunks are a part of it (default ``spp_total``): the scratch BSDFs' footprint filter is
+    sized for it (:func:`.filtering.set_footprint`), so parts average as the whole render does.  Stop iterating to
     cancel: no work is left behind but, with ``overlap``, the one pass already
     launched.  ``freeze``: record the first chunk of each
     size with ``dr.freeze`` and replay it for the others
@@ -129,6 +131,7 @@ def render_chunks(scene, chunks: Iterable[Chunk], spp_total: int, *, freeze: boo
     same images bit for bit (the launch only moves earlier).  Off on the CPU, where both
     would share the same cores.
     """
+    from .filtering import set_footprint
     from .freezing import FrozenRender
     from ..device.variants import on_gpu
 
@@ -136,6 +139,8 @@ def render_chunks(scene, chunks: Iterable[Chunk], spp_total: int, *, freeze: boo
     indices = [chunk.index for chunk in chunks]
     if indices and indices != list(range(indices[0], indices[0] + len(indices))):
         raise ValueError("render_chunks needs consecutive chunks of one schedule (the sums follow their indices)")
+    # the footprint filter's size follows the whole render's samples, never a chunk's (docs/model.md §11.2)
+    set_footprint(scene, spp_total if render_spp is None else render_spp)
     if overlap is None:
         overlap = on_gpu()
     passes = FrozenRender(enabled=freeze)
@@ -243,7 +248,7 @@ def render_passes(scene, spp: int, *, seed: int = 0) -> Iterator[Progress]:
     """
     plan = plan_render(scene, spp, seed=seed)
     plan.check_memory()  # before any film is allocated
-    return render_chunks(scene, plan.chunks, plan.spp)
+    return render_chunks(scene, plan.chunks, plan.spp, render_spp=plan.spp)
 
 
 def render_image(scene, spp: int, *, seed: int = 0) -> np.ndarray:

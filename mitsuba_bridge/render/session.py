@@ -73,6 +73,7 @@ from ..scene import (LIGHT_TYPES, WORLD_TYPES, Camera, Film, RenderSettings, Sce
 from ..scene.materials import Material
 from ..scratch import ScratchSet
 from .activation import activate
+from .filtering import footprint_keys, footprint_values, pixel_size
 from .freezing import FrozenRender
 from .memory import check_session_memory
 from .passes import Progress, pass_seed
@@ -236,6 +237,7 @@ class Session:
         self._keys = updates.SceneKeys.of(scene_dict)
         self._scene = builder.load_dict(scene_dict)
         self._params = mi.traverse(self._scene)
+        self._footprint_keys = footprint_keys(self._params)
         self._render.reset()
         # The loaded sensors hold their parameters as literals; written once as opaque values now, the
         # first kernels already take them as inputs and no camera move compiles anything.
@@ -248,6 +250,10 @@ class Session:
         self._stats["last_update"] = f"rebuild ({reason})"
 
     def _restart(self) -> None:
+        # the footprint filter: each pass's samples share the pixel with the samples before them (docs/model.md
+        # §11.2), so the footprint shrinks pass after pass and the running mean converges to the point image
+        self._pixel = pixel_size(self._scene) if self._footprint_keys else None
+        self._footprint_shown = None
         self._index = 0  #: renders since the change (preview, strips, passes): the seed's index
         self._pass_index = 0  #: passes begun since the change (a pass is all its strips)
         self._strip = 0  #: the next strip of the current pass
@@ -491,6 +497,11 @@ class Session:
             sensor = self._keys.sensor_index(updates.STRIP_SENSOR)
         else:
             sensor = self._keys.sensor_index(updates.SENSOR)
+        if self._footprint_keys:
+            footprint = (1, self.start_divisor) if preview else (self._spp_done + spp, 1)
+            if footprint != self._footprint_shown:  # opaque values: the recorded pass replays
+                self._assign(footprint_values(self._footprint_keys, self._pixel, footprint[0], scale=footprint[1]))
+                self._footprint_shown = footprint
         began = time.perf_counter()
         image = np.asarray(self._render(self._scene, sensor, spp, pass_seed(self.settings.seed, self._index)),
                            dtype=np.float32)

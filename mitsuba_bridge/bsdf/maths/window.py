@@ -16,7 +16,7 @@ import drjit as dr
 from .complexmath import Cx, expi
 from .faddeeva import faddeeva
 
-__all__ = ["mirror_lobe", "window_integral", "piece_and_run_integrals", "unphased_end_term", "line_term",
+__all__ = ["mirror_lobe", "window_integral", "piece_and_run_integrals", "unphased_end_term", "end_term", "line_term",
            "clamp_to_window", "END_CLAMP_SIGMAS", "END_NEGLIGIBLE_SIGMAS"]
 
 #: Segment end positions are clamped to ±8σ (the window is e^-32 there).
@@ -84,6 +84,13 @@ def _skippable_end_term(t, nu, sigma, wanted=True):
 
     re, im = dr.if_stmt((t, nu), near, compute, lambda t, nu: (zero, zero), label="scratch_end")
     return Cx(re, im)
+
+
+def end_term(t, nu, sigma):
+    """``Φ(t; ν) / (σ√(π/2)) - 2 e^{-2π²σ²ν²} H(t)``: the end term of :func:`window_integral` at ``t`` (clamped
+    to the window), zero for whole SIMD packets of ends beyond 6σ (for callers that share an end between
+    several integrals: ``window_integral(t0, t1) = σ√(π/2) (end_term(t1) - end_term(t0) + steps)``)."""
+    return _skippable_end_term(clamp_to_window(t, sigma), nu, sigma)
 
 
 def window_integral(t0, t1, nu, sigma, skip_far_ends: bool = True):

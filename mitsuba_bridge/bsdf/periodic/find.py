@@ -88,13 +88,15 @@ class _Slot(NamedTuple):
     last: object = None
 
 
-def find_family(grid, jac, sigma, active) -> Family:
+def find_family(grid, jac, sigma, active, reach_um=None) -> Family:
     """The family whose tracks fill x0's window, if any (module docstring).
 
     The window's box may reach into the neighbouring cells (at most 2 × 2 cells): each cell it touches
     must hold the same run (same direction, pitch and groove, offsets a whole number of pitches apart)
-    with a rectangle holding the window's part in that cell (the box clipped to it)."""
-    window = _Window(grid, jac, sigma, active)
+    with a rectangle holding the window's part in that cell (the box clipped to it).  ``reach_um``
+    (per lane): how far across the tracks the box reaches instead of ``ACROSS_SIGMAS`` σ, along them
+    ``ALONG_SIGMAS / ACROSS_SIGMAS`` times that (the footprint filter's reach, docs/model.md §11.6)."""
+    window = _Window(grid, jac, sigma, active, reach_um)
     found = dr.if_stmt((window.candidate,), window.candidate, window.search, window.nothing, label="scratch_family")
     eligible, dx, dy, pitch, offset, width, depth = found[:7]
     family = Family(eligible=eligible, dx=dx, dy=dy, pitch=pitch, a0=offset,
@@ -112,7 +114,7 @@ class _Window:
     those cells seen from x0, and the searches for a run, an edge and a kink (:func:`find_family`)."""
 
     # ---- the window's box in cells
-    def __init__(self, grid, jac, sigma, active):
+    def __init__(self, grid, jac, sigma, active, reach_um=None):
         self.grid, self.jac, self.sigma = grid, jac, sigma
         self.gu = gu = (jac.uv.x - grid.origin_u) * grid.inverse_cell_size
         self.gv = gv = (jac.uv.y - grid.origin_v) * grid.inverse_cell_size
@@ -121,7 +123,8 @@ class _Window:
         usable = mi.Bool(active) & (dr.abs(det) > 1e-12 * norm2)
         inv_det = dr.rcp(dr.select(usable, dr.abs(det), 1.0))
         self.scale = inv_det * grid.inverse_cell_size  # cells per µm, times |adj(J)ᵀ·| below
-        self.reach_um = ACROSS_SIGMAS * sigma
+        self.reach_um = ACROSS_SIGMAS * sigma if reach_um is None else reach_um
+        self.along_um = ALONG_SIGMAS * sigma if reach_um is None else (ALONG_SIGMAS / ACROSS_SIGMAS) * reach_um
         reach = self.reach_um * self.scale
         self.extent_u = extent_u = reach * dr.sqrt(jac.j11 * jac.j11 + jac.j01 * jac.j01) + grid.margin
         self.extent_v = extent_v = reach * dr.sqrt(jac.j10 * jac.j10 + jac.j00 * jac.j00) + grid.margin
@@ -174,7 +177,7 @@ class _Window:
         s = f0.y * du - f0.x * dv  # along t = (n_v, -n_u)
         adj_n = dr.sqrt(dr.square(jac.j11 * f0.x - jac.j10 * f0.y) + dr.square(jac.j00 * f0.y - jac.j01 * f0.x))
         adj_t = dr.sqrt(dr.square(jac.j11 * f0.y + jac.j10 * f0.x) + dr.square(jac.j00 * f0.x + jac.j01 * f0.y))
-        along = (ALONG_SIGMAS * sigma) * self.scale * adj_t + grid.margin
+        along = self.along_um * self.scale * adj_t + grid.margin
         micrometres_per_cell = dr.abs(self.det) * dr.rcp(dr.maximum(adj_n, 1e-30)) * grid.cell_size
         # no lattice position of the part lies beyond the first or the last track (those beyond the cell's
         # part belong to its neighbours, checked there), and every track runs past the window's reach

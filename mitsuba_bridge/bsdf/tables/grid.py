@@ -232,9 +232,11 @@ def end_keys(points, lattice) -> np.ndarray:
     return (q[:, 0] << 31) | q[:, 1]
 
 
-def continuations(a, b, segments, lattice=None) -> np.ndarray:
+def continuations(a, b, segments, lattice=None, same_profile: bool = True) -> np.ndarray:
     """``(N, 2)`` float32: per piece, how far (UV) its groove runs on straight before its start and after
-    its end, through pieces of the same width and depth that meet it end to start (0: it ends or turns).
+    its end, through pieces of the same width and depth that meet it end to start (0: it ends or turns);
+    ``same_profile=False``: through any pieces meeting it end to start on its line (the footprint filter's
+    runs, :mod:`.lines`).
 
     Long pieces are split (``MAX_PIECE_UV``) and polylines may run straight on: a periodic family
     (:mod:`.periodic`) then knows that a track listed in a cell by one piece goes on past that piece's
@@ -272,7 +274,8 @@ def continuations(a, b, segments, lattice=None) -> np.ndarray:
             sine_times_size = np.abs(e[:, 0] * e_next[:, 1] - e[:, 1] * e_next[:, 0])
             forward = np.einsum("ij,ij->i", e, e_next) > 0
             straight = (sine_times_size < STRAIGHT_ON_SIN * np.maximum(size, 1e-300)) & forward
-            same = (segments[mine, 6] == segments[following, 6]) & (segments[mine, 7] == segments[following, 7])
+            same = (segments[mine, 6] == segments[following, 6]) & (segments[mine, 7] == segments[following, 7]) \
+                if same_profile else True
             joined = candidate & straight & same & (following != mine)
             follower[joined] = following[joined]
         return mine[follower >= 0], follower[follower >= 0]

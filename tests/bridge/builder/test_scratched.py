@@ -7,6 +7,7 @@ from scratch_iridescence.mitsuba_bridge import builder, scratch
 from scratch_iridescence.mitsuba_bridge.folder import export
 from scratch_iridescence.mitsuba_bridge.render import passes as render
 from scratch_iridescence.mitsuba_bridge import scene as S
+from scratch_iridescence.mitsuba_bridge.bsdf.parameters import FOOTPRINT_SCALE
 
 
 def plate_scene(material):
@@ -69,14 +70,34 @@ def test_scratches_light_up_where_a_plain_mirror_is_dark(variant, scratches):
 
 def test_export_folder_carries_the_scratch_file_and_renders_the_same(variant, scratches, tmp_path):
     description = plate_scene(metal(scratches))
-    export.export_folder(description, S.RenderSettings(), tmp_path / "out")
+    # (the footprint filter off: with it, a sample picks one of the dozens of pieces in its footprint by
+    # cumulative weights, and the float32 bits of the PLY's hit points flip a few picks, so a few pixels'
+    # samples differ; the filter's own settings travel in the XML, checked below)
+    settings = S.RenderSettings(footprint_filter=False)
+    export.export_folder(description, settings, tmp_path / "out")
     assert scratch.load(tmp_path / "out" / "scratches" / "plate.npz") == scratches
     assert 'value="scratches/plate.npz"' in (tmp_path / "out" / "scene.xml").read_text()
     # The same schedule and seed draw the same samples, so the images agree up to float32 storage of the files.
     from_files = render.render_image(export.load_folder(tmp_path / "out"), 64, seed=3)
-    in_memory = render.render_image(builder.load_scene(description, S.RenderSettings()), 64, seed=3)
+    in_memory = render.render_image(builder.load_scene(description, settings), 64, seed=3)
     assert in_memory[..., :3].mean() > 0.01
     np.testing.assert_allclose(from_files, in_memory, rtol=1e-4, atol=1e-6)
+
+
+def test_export_folder_carries_the_footprint_filter(variant, scratches, tmp_path):
+    """The exported scene.xml renders with the footprint the renderer would set (docs/model.md §11.2)."""
+    mi = pytest.importorskip("mitsuba")
+    description = plate_scene(metal(scratches))
+    export.export_folder(description, S.RenderSettings(spp=64), tmp_path / "out")
+    loaded = mi.traverse(export.load_folder(tmp_path / "out"))
+    in_memory = mi.traverse(builder.load_scene(description, S.RenderSettings(spp=64)))
+    (key,) = [k for k in loaded.keys() if k.endswith("footprint_angle")]
+    (memory_key,) = [k for k in in_memory.keys() if k.endswith("footprint_angle")]
+    pixel_angle = 2.0 * np.tan(np.radians(description.camera.fov_x_deg) / 2.0) / description.film.width
+    expected = FOOTPRINT_SCALE * pixel_angle / np.sqrt(64)
+    assert loaded[key][0] == pytest.approx(expected, rel=1e-6)
+    assert in_memory[memory_key][0] == pytest.approx(expected, rel=1e-6)
+    assert "footprint_filter" in (tmp_path / "out" / "scene.xml").read_text()
 
 
 def test_unscratched_metal_needs_no_scratch_file(variant, tmp_path):

@@ -1,0 +1,124 @@
+"""Benchmark: how fast a scratched plate converges with the footprint filter (docs/model.md §11) and without.
+
+The demo's plate (3 000 scratches of the paper's Fig. 7(b) looks, under a sun and sky,
+:func:`bench_schedule.scratched_plate`) on a ``--size`` film, rendered through the renderer's own
+path (``render.passes.render_image``: the fixed chunk schedule, the footprint sized for the whole
+render's samples per pixel) at each of ``--spp``, with ``footprint_filter`` off (every sample sees
+one point: today's renders) and on. Each image is compared over the plate's pixels (camera rays
+that hit it) with a point-sampled reference of ``--reference-spp``:
+
+* **relative RMSE** = √(mean (image − reference)²) / mean(reference), RGB, plate pixels;
+* **mean** = mean(image) / mean(reference) − 1 over the plate (a biased filter would show here);
+* **time per sample** = the render's wall time / (pixels × spp), after a render that compiled
+  its kernels (a user's second render), and the filter's time over the point render's;
+* **equal-error speed-up**: the point render's error falls as a/√spp (a fitted from its rows); the
+  samples it would need for the filtered render's error, times its time per sample, over the
+  filtered render's time.
+
+The reference is itself noisy: it is rendered as two halves of different seeds, and its own relative
+RMSE is estimated as RMSE(half₁ − half₂)/2 (the halves' difference has twice a half's variance, the
+whole half a half's); rows below about twice that floor measure the reference, not the image.
+
+Run: ``.venv/bin/python tests/bench/bench_convergence.py [--size 240 150] [--spp 16 64 256]
+[--reference-spp 8192]`` (prints a markdown table; docs/benchmarks.md has the figures).
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "bench"))
+
+
+def plate_mask(scene) -> np.ndarray:
+    """``(height, width)`` bool: the pixels whose centre ray hits a shape (the plate; the rest is sky)."""
+    import drjit as dr
+    import mitsuba as mi
+
+    sensor = scene.sensors()[0]
+    width, height = sensor.film().crop_size()
+    y, x = np.mgrid[0:height, 0:width]
+    position = mi.Point2f(mi.Float(((x + 0.5) / width).ravel().astype(np.float32)),
+                          mi.Float(((y + 0.5) / height).ravel().astype(np.float32)))
+    ray, _ = sensor.sample_ray(0.0, 0.5, position, mi.Point2f(0.5, 0.5))
+    hit = scene.ray_intersect(ray)
+    return np.asarray(dr.detach(hit.is_valid())).reshape(height, width)
+
+
+def relative_rmse(image, reference, mask) -> float:
+    difference = (image - reference)[mask]
+    return float(np.sqrt(np.mean(difference ** 2)) / np.mean(reference[mask]))
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--size", type=int, nargs=2, default=(240, 150), metavar=("WIDTH", "HEIGHT"))
+    parser.add_argument("--spp", type=int, nargs="+", default=[16, 64, 256])
+    parser.add_argument("--reference-spp", type=int, default=8192)
+    args = parser.parse_args()
+
+    from bench_schedule import scratched_plate
+    from scratch_iridescence.mitsuba_bridge import builder
+    from scratch_iridescence.mitsuba_bridge import scene as S
+    from scratch_iridescence.mitsuba_bridge.render.activation import activate
+    from scratch_iridescence.mitsuba_bridge.render.passes import render_image
+
+    variant = activate("auto")
+    width, height = args.size
+    description = dataclasses.replace(scratched_plate(width), film=S.Film(width, height))
+
+    def scene_for(filtered: bool):
+        return builder.load_scene(description, S.RenderSettings(footprint_filter=filtered))
+
+    def rgb(image):
+        return np.asarray(image, dtype=np.float64)[..., :3]
+
+    scenes = {False: scene_for(False), True: scene_for(True)}
+    mask = plate_mask(scenes[False])
+    for scene in scenes.values():  # compile every kernel once
+        render_image(scene, 4, seed=99)
+
+    started = time.perf_counter()
+    half = max(args.reference_spp // 2, 1)
+    halves = [rgb(render_image(scenes[False], half, seed=10_000 + k)) for k in range(2)]
+    reference_seconds = time.perf_counter() - started
+    reference = 0.5 * (halves[0] + halves[1])
+    floor = relative_rmse(halves[0], halves[1], mask) / 2.0
+
+    rows = []
+    for spp in args.spp:
+        for filtered in (False, True):
+            began = time.perf_counter()
+            image = rgb(render_image(scenes[filtered], spp, seed=spp))
+            seconds = time.perf_counter() - began
+            rows.append(dict(spp=spp, filtered=filtered, error=relative_rmse(image, reference, mask),
+                             bias=float(image[mask].mean() / reference[mask].mean() - 1.0),
+                             per_sample=seconds / (width * height * spp)))
+
+    point_rows = [r for r in rows if not r["filtered"]]
+    a = float(np.mean([r["error"] * np.sqrt(r["spp"]) for r in point_rows]))  # error ≈ a/√spp
+    point_per_sample = {r["spp"]: r["per_sample"] for r in point_rows}
+
+    print(f"variant {variant}; film {width} × {height} ({int(mask.sum())} plate pixels); reference "
+          f"{2 * half} spp point-sampled ({reference_seconds:.0f} s), its own relative RMSE ≈ {floor:.3f}; "
+          f"point error ≈ {a:.2f}/√spp")
+    print()
+    print("| spp | filter | relative RMSE | mean vs reference | time / sample (µs) | × point's | "
+          "point spp for this error | equal-error speed-up |")
+    print("|---|---|---|---|---|---|---|---|")
+    for r in rows:
+        ratio = r["per_sample"] / point_per_sample[r["spp"]]
+        equal = (a / r["error"]) ** 2
+        speed_up = equal * point_per_sample[r["spp"]] / (r["spp"] * r["per_sample"])
+        print(f"| {r['spp']} | {'on' if r['filtered'] else 'off'} | {r['error']:.3f} | {100 * r['bias']:+.1f} % | "
+              f"{1e6 * r['per_sample']:.2f} | {ratio:.2f} | {equal:.0f} | {speed_up:.1f}× |")
+
+
+if __name__ == "__main__":
+    main()
