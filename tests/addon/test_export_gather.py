@@ -172,7 +172,8 @@ def test_spot_blend_places_mitsubas_ramp_on_blenders_half_point(staged):
 
 def test_world_colour_times_strength(staged):
     set_world(staged, (0.2, 0.4, 0.6), strength=2.0)
-    assert gather(staged).world == S.ConstantWorld(pytest.approx((0.4, 0.8, 1.2)))
+    world = gather(staged).world
+    assert isinstance(world, S.ConstantWorld) and world.radiance == pytest.approx((0.4, 0.8, 1.2))
 
 
 def test_black_or_missing_world_emits_nothing(staged):
