@@ -73,8 +73,9 @@ class SCRATCH_PG_render(bpy.types.PropertyGroup):
         name="Footprint Filter",
         description="Average each scratched surface over the patch a sample stands for (its share of the "
                     "pixel), so that glints settle in a few samples; the image converges to the same one. "
-                    "Off: every sample sees one point, as the paper renders (for validation)",
-        default=True, update=_tag_scene)
+                    "Off: every sample sees one point, as the paper renders. Off by default for now: far views "
+                    "(many scratches per pixel) cost much more per sample with it",
+        default=False, update=_tag_scene)
     film_filter: EnumProperty(
         name="Pixel Filter", description="Reconstruction filter of the film",
         items=_FILTER_ITEMS, default="box", update=_tag_scene)

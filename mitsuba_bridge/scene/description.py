@@ -398,8 +398,9 @@ class RenderSettings:
     max_depth: int = 8
     seed: int = 0
     variant: str = "auto"
-    #: average the scratch BSDFs over each sample's share of its pixel (docs/model.md §11); off for validation
-    footprint_filter: bool = True
+    #: average the scratch BSDFs over each sample's share of its pixel (docs/model.md §11). Off by default until far
+    #: views are bounded (docs/model.md §11: without aggregates a footprint holding many pieces visits them all)
+    footprint_filter: bool = False
     #: also render Blender's data passes (Depth, Denoising Albedo and Normal; F12 when the view layer asks)
     data_passes: bool = False
 

@@ -88,9 +88,10 @@ def test_export_folder_carries_the_footprint_filter(variant, scratches, tmp_path
     """The exported scene.xml renders with the footprint the renderer would set (docs/model.md §11.2)."""
     mi = pytest.importorskip("mitsuba")
     description = plate_scene(metal(scratches))
-    export.export_folder(description, S.RenderSettings(spp=64), tmp_path / "out")
+    settings = S.RenderSettings(spp=64, footprint_filter=True)
+    export.export_folder(description, settings, tmp_path / "out")
     loaded = mi.traverse(export.load_folder(tmp_path / "out"))
-    in_memory = mi.traverse(builder.load_scene(description, S.RenderSettings(spp=64)))
+    in_memory = mi.traverse(builder.load_scene(description, settings))
     (key,) = [k for k in loaded.keys() if k.endswith("footprint_angle")]
     (memory_key,) = [k for k in in_memory.keys() if k.endswith("footprint_angle")]
     pixel_angle = 2.0 * np.tan(np.radians(description.camera.fov_x_deg) / 2.0) / description.film.width
