@@ -16,18 +16,22 @@ BLENDER_FREE = ["scratch_iridescence.mitsuba_bridge", "scratch_iridescence.addon
 BLENDER_MODULES = ("bpy", "mathutils", "gpu", "bmesh", "bpy_extras", "gpu_extras")
 
 
+#: Source for a fresh interpreter: a meta-path finder that refuses Blender's modules (imports ``sys`` first).
+BLOCK_BLENDER = f"""class Block:
+    def find_spec(self, name, path=None, target=None):
+        if name.split('.')[0] in {BLENDER_MODULES!r}:
+            raise ImportError('blocked: ' + name)
+sys.meta_path.insert(0, Block())
+"""
+
+
 @pytest.mark.parametrize("package", BLENDER_FREE)
 def test_blender_free_packages_import_with_bpy_unavailable(package):
     # A meta-path finder that refuses Blender's modules, in a fresh interpreter; every module of the
     # package is found by walking its folder, so a new module is covered without editing a list.
     code = f"""
 import sys, importlib, pkgutil
-class Block:
-    def find_spec(self, name, path=None, target=None):
-        if name.split('.')[0] in {BLENDER_MODULES!r}:
-            raise ImportError('blocked: ' + name)
-sys.meta_path.insert(0, Block())
-package = importlib.import_module({package!r})
+{BLOCK_BLENDER}package = importlib.import_module({package!r})
 names = [info.name for info in pkgutil.walk_packages(package.__path__, {package!r} + '.')]
 for name in names:
     importlib.import_module(name)
@@ -45,12 +49,7 @@ def test_the_blender_free_geometry_tests_run_without_blender():
     code = f"""
 import importlib.util, sys
 import pytest
-class Block:
-    def find_spec(self, name, path=None, target=None):
-        if name.split('.')[0] in {BLENDER_MODULES!r}:
-            raise ImportError('blocked: ' + name)
-sys.meta_path.insert(0, Block())
-find_spec = importlib.util.find_spec
+{BLOCK_BLENDER}find_spec = importlib.util.find_spec
 importlib.util.find_spec = lambda name, *rest: None if name.split('.')[0] == 'bpy' else find_spec(name, *rest)
 sys.exit(pytest.main(['--collect-only', '-q', '-p', 'no:cacheprovider', 'tests/addon']))
 """
