@@ -150,7 +150,8 @@ def test03_a_segments_intensity_equals_its_footprint_average(name, cov_name):
 
 
 @pytest.mark.parametrize("name", ["long rect", "V ending near the centre", "short rect"])
-@pytest.mark.parametrize("cov_name", ["isotropic 2 µm", "sheared", "oblique 50 µm"])
+@pytest.mark.parametrize("cov_name", ["isotropic 2 µm", "sheared",
+                                      pytest.param("oblique 50 µm", marks=pytest.mark.slow)])
 def test04_the_mean_amplitude_equals_its_footprint_average(name, cov_name):
     segment, cov = SEGMENTS[name], COVARIANCES[cov_name]
     g = np.linspace(-0.05, 0.05, 9)
@@ -184,7 +185,8 @@ def pair_average(first, second, cov, xi, real=False):
 
 
 @pytest.mark.parametrize("angle", [90.0, 30.0])
-@pytest.mark.parametrize("std", [0.5, 2.0, 5.0])
+@pytest.mark.parametrize("std", [0.5, pytest.param(2.0, marks=pytest.mark.slow),  # ~10 s a case: test-slow
+                                 pytest.param(5.0, marks=pytest.mark.slow)])
 def test05_crossing_pairs_follow_their_footprint_average(angle, std):
     """The closed form (and the nodes of narrow footprints) against the average; the pair term itself
     is a few per cent of the intensity at these footprints, the closed form within 10 % of the term."""
