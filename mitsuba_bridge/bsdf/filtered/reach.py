@@ -27,11 +27,16 @@ import mitsuba as mi
 
 from .footprint import Footprint
 
-__all__ = ["MAX_EXPECTED_PIECES", "CAP_REFINEMENTS", "expected_pieces", "capped_reach", "capped_footprint"]
+__all__ = ["MAX_EXPECTED_PIECES", "CAP_REFINEMENTS", "SNAP_TO_POINT_SIGMAS", "expected_pieces", "capped_reach", "capped_footprint"]
 
-#: Pieces one filtered evaluation is expected to visit at most (the demo plate seen close, 240 px wide at
-#: 16 spp, visits 8 on average, 27 at most: its footprints are not capped).
-MAX_EXPECTED_PIECES = 32.0
+#: Pieces one filtered evaluation is expected to visit at most.  Sets of ordinary density are not capped: the
+#: demo plate's evaluations visit 8 pieces on average at 240 px wide and 16 spp, 38 at 60 px (its radius then
+#: at ``MAX_RADIUS_SIGMAS``), and the test surfaces' two 300 µm grooves cut into 40 pieces; a CD's tracks seen
+#: from 96 px visited up to 11 580.
+MAX_EXPECTED_PIECES = 64.0
+#: A footprint capped to a larger standard deviation below this many σ becomes the point (it would filter next
+#: to nothing, at the filtered terms' cost).
+SNAP_TO_POINT_SIGMAS = 0.5
 #: Times the capped reach is estimated again with the densities of its own, smaller box.
 CAP_REFINEMENTS = 3
 
@@ -39,7 +44,7 @@ CAP_REFINEMENTS = 3
 def _box(grid, density, jac, reach_um):
     """``(share, listed, cells, per_um_u, per_um_v)``: the sums of ``density`` (mi.Float, the summed-area
     tables of :func:`..tables.density.density_table`) over the cells of the reach's UV box
-    (clipped to the grid), its cell count, and its half extents per µm of reach, in cells."""
+    (the sums clipped to the grid), its cell count, and its half extents per µm of reach, in cells."""
     det = jac.j00 * jac.j11 - jac.j01 * jac.j10
     inv_det = dr.rcp(dr.maximum(dr.abs(det), 1e-30))
     per_um_u = inv_det * grid.inverse_cell_size * dr.sqrt(jac.j11 * jac.j11 + jac.j01 * jac.j01)
@@ -53,18 +58,21 @@ def _box(grid, density, jac, reach_um):
         x = dr.select(dr.isfinite(x), x, 0.0)
         return mi.Int32(dr.clip(x, 0.0, cells))
 
-    u0, u1 = column(dr.floor(gu - extent_u), nu), column(dr.floor(gu + extent_u) + 1.0, nu)
-    v0, v1 = column(dr.floor(gv - extent_v), nv), column(dr.floor(gv + extent_v) + 1.0, nv)
+    low_u, high_u = dr.floor(gu - extent_u), dr.floor(gu + extent_u) + 1.0
+    low_v, high_v = dr.floor(gv - extent_v), dr.floor(gv + extent_v) + 1.0
+    u0, u1, v0, v1 = column(low_u, nu), column(high_u, nu), column(low_v, nv), column(high_v, nv)
     row = grid.cells_u + 1
 
     def corner(u, v):
         return dr.gather(mi.Vector2f, density, mi.UInt32(v * row + u))
 
     total = corner(u1, v1) - corner(u0, v1) - corner(u1, v0) + corner(u0, v0)
-    cells = mi.Float(dr.maximum(u1 - u0, 0) * dr.maximum(v1 - v0, 0))
-    empty = cells < 0.5
+    empty = (u1 <= u0) | (v1 <= v0)
     share = dr.select(empty, 0.0, dr.maximum(total.x, 0.0))
     listed = dr.select(empty, 0.0, dr.maximum(total.y, 0.0))
+    # the densities are over the whole box: its cells outside the grid hold no piece
+    cells = dr.select(dr.isfinite(high_u - low_u) & dr.isfinite(high_v - low_v), (high_u - low_u) * (high_v - low_v),
+                      1.0)
     return share, listed, dr.maximum(cells, 1.0), per_um_u, per_um_v
 
 
@@ -94,6 +102,10 @@ def capped_footprint(footprint: Footprint, grid, density, jac, sigma, reach_stds
     largest = footprint.largest_variance
     sigma2 = sigma * sigma
     reach = reach_stds * dr.sqrt(largest + sigma2)
-    allowed = dr.square(capped_reach(grid, density, jac, reach) * (1.0 / reach_stds)) - sigma2
-    factor = dr.select(allowed < largest, dr.maximum(allowed, 0.0) * dr.rcp(dr.maximum(largest, 1e-30)), 1.0)
+    capped = capped_reach(grid, density, jac, reach)
+    allowed = dr.maximum(dr.square(capped * (1.0 / reach_stds)) - sigma2, 0.0)
+    # a footprint capped below SNAP_TO_POINT_SIGMAS σ filters next to nothing at the cost of the filtered terms:
+    # the point model's instead (lanes whose reach is not capped keep their footprint bit for bit)
+    allowed = dr.select(allowed < dr.square(SNAP_TO_POINT_SIGMAS * sigma), 0.0, allowed)
+    factor = dr.select(capped < reach, dr.minimum(allowed * dr.rcp(dr.maximum(largest, 1e-30)), 1.0), 1.0)
     return Footprint(footprint.xx * factor, footprint.xy * factor, footprint.yy * factor)
