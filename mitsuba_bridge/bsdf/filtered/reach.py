@@ -27,7 +27,8 @@ import mitsuba as mi
 
 from .footprint import Footprint
 
-__all__ = ["MAX_EXPECTED_PIECES", "CAP_REFINEMENTS", "SNAP_TO_POINT_SIGMAS", "expected_pieces", "capped_reach", "capped_footprint"]
+__all__ = ["MAX_EXPECTED_PIECES", "CAP_REFINEMENTS", "SNAP_TO_POINT_SIGMAS", "expected_pieces", "capped_reach",
+           "capped_footprint"]
 
 #: Pieces one filtered evaluation is expected to visit at most.  Sets of ordinary density are not capped: the
 #: demo plate's evaluations visit 8 pieces on average at 240 px wide and 16 spp, 38 at 60 px (its radius then
