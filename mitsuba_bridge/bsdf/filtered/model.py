@@ -90,8 +90,16 @@ class FilteredModel(Model):
                                  MAX_RADIUS_SIGMAS * self.sigma)
         if self.piece_density is None:
             return footprint
-        return capped_footprint(footprint, self.grid, self.piece_density, jacobian(si, self.micrometres_per_unit),
-                                self.sigma, REACH_STDS)
+        jac = jacobian(si, self.micrometres_per_unit)
+        footprint = capped_footprint(footprint, self.grid, self.piece_density, jac, self.sigma, REACH_STDS)
+        reach_family = self._footprint_family(jac, footprint, self._reach(footprint), mi.Bool(True))
+        if reach_family is None:
+            return footprint
+        # inside a periodic family whose closed form the footprint's reach loses (an edge or a kink within it, or
+        # more than 2 × 2 cells), the point window's closed form instead of every track piece by piece
+        window_family = find_family(self.grid, jac, self.sigma, mi.Bool(True))
+        point = window_family.eligible & ~reach_family.eligible
+        return Footprint(*(dr.select(point, 0.0, part) for part in footprint))
 
     def _is_point(self, footprint: Footprint):
         return footprint.largest_variance < (POINT_BELOW_SIGMAS * self.sigma) ** 2
