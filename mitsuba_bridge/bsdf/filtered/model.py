@@ -41,8 +41,7 @@ from .reach import capped_footprint
 __all__ = ["FilteredModel", "POINT_BELOW_SIGMAS", "REACH_STDS", "RECENT_PIECES", "filtered_window_energy"]
 
 #: A sample's footprint radius is capped at this many σ, whatever the pieces' density (where they are dense the
-#: reach is capped further, :mod:`.reach`; a smaller footprint only filters less, docs/model.md §11.8).  The demo
-#: plate at 240 × 150 and 16 spp (bench_convergence) has radii of about 10σ, under it.
+#: reach is capped further, :mod:`.reach`; a smaller footprint only filters less, docs/model.md §11.8).
 MAX_RADIUS_SIGMAS = 32.0
 #: Footprints whose larger standard deviation is below this many σ take the point model.
 POINT_BELOW_SIGMAS = 0.05

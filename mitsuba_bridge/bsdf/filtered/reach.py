@@ -30,10 +30,9 @@ from .footprint import Footprint
 __all__ = ["MAX_EXPECTED_PIECES", "CAP_REFINEMENTS", "SNAP_TO_POINT_SIGMAS", "expected_pieces", "capped_reach",
            "capped_footprint"]
 
-#: Pieces one filtered evaluation is expected to visit at most.  Sets of ordinary density are not capped: the
-#: demo plate's evaluations visit 8 pieces on average at 240 px wide and 16 spp, 38 at 60 px (its radius then
-#: at ``MAX_RADIUS_SIGMAS``), and the test surfaces' two 300 µm grooves cut into 40 pieces; a CD's tracks seen
-#: from 96 px visited up to 11 580.
+#: Pieces one filtered evaluation is expected to visit at most: high enough that sets of ordinary density (the
+#: demo plate close and from afar, the test surfaces' two 300 µm grooves cut into 40 pieces) are not capped,
+#: low enough for a CD's tracks (docs/model.md §11.8 has the counts).
 MAX_EXPECTED_PIECES = 64.0
 #: A footprint capped to a larger standard deviation below this many σ becomes the point (it would filter next
 #: to nothing, at the filtered terms' cost).
