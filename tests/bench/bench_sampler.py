@@ -16,8 +16,12 @@ chunks, each with its own seed) and prints:
 The chunks column is the schedule at that size: a stratified sampler stratifies within a chunk, and chunks
 add like independent estimates (docs/rendering.md, The sampler), so the gain shrinks with the chunk.
 
-Run: ``.venv/bin/python tests/bench/bench_sampler.py [--size 320 200 --size 640 400] [--spp 64]``
-(prints a markdown table; docs/rendering.md, The sampler, has the figures).
+``--mitsuba-samplers`` also renders the first size in one ``mi.render`` call of ``--spp`` with each of
+Mitsuba's samplers that takes that count as it is (64: ``stratified``, ``multijitter``, ``ldsampler``,
+``independent``; ``orthogonal`` would render 121), outside the schedule: how they rank at equal samples.
+
+Run: ``.venv/bin/python tests/bench/bench_sampler.py [--size 320 200 --size 640 400] [--spp 64]
+[--mitsuba-samplers]`` (prints markdown tables; docs/rendering.md, The sampler, has the figures).
 """
 from __future__ import annotations
 
@@ -43,6 +47,8 @@ def main() -> None:
     parser.add_argument("--size", type=int, nargs=2, action="append", metavar=("WIDTH", "HEIGHT"),
                         help="film size (repeatable; default 320 200 and 640 400)")
     parser.add_argument("--spp", type=int, default=64)
+    parser.add_argument("--mitsuba-samplers", action="store_true",
+                        help="also rank Mitsuba's samplers in one call each at the first size")
     args = parser.parse_args()
 
     from bridge_scenes import diffuse_scene
@@ -76,6 +82,38 @@ def main() -> None:
         (new_l1, new_rmse), (old_l1, old_rmse) = figures["multijitter"], figures["independent"]
         print(f"| {width} × {height} | | multijitter / independent | **{new_l1 / old_l1:.2f}** | "
               f"**{new_rmse / old_rmse:.2f}** | | |", flush=True)
+    if args.mitsuba_samplers:
+        width, height = (args.size or [(320, 200)])[0]
+        rank_mitsuba_samplers(diffuse_scene(S.Film(width, height)), args.spp)
+
+
+def rank_mitsuba_samplers(description, spp: int) -> None:
+    """One ``mi.render`` call of ``spp`` per Mitsuba sampler that takes ``spp`` as it is, seeds 1 and 2."""
+    import mitsuba as mi
+
+    from scratch_iridescence.mitsuba_bridge import builder
+    from scratch_iridescence.mitsuba_bridge import scene as S
+
+    print(f"\nOne mi.render call of {spp} spp, {description.film.width} × {description.film.height}\n")
+    print("| sampler | L1 | RMSE | s/render |")
+    print("|---|---|---|---|")
+    for name in ("independent", "stratified", "multijitter", "ldsampler", "orthogonal"):
+        probe = mi.load_dict({"type": name})
+        probe.set_sample_count(spp)
+        if probe.sample_count() != spp:
+            print(f"| {name} | renders {probe.sample_count()} spp, not {spp} | | |")
+            continue
+        tree = builder.scene_dict(description, S.RenderSettings(spp=spp), builder.InMemory())
+        sensor = next(value for value in tree.values() if isinstance(value, dict) and "sampler" in value)
+        sensor["sampler"] = {"type": name, "sample_count": spp}
+        scene = builder.load_dict(tree)
+        mi.render(scene, spp=spp, seed=99)  # compile
+        started = time.perf_counter()
+        first = np.asarray(mi.render(scene, spp=spp, seed=1), dtype=np.float64)[..., :3]
+        seconds = time.perf_counter() - started
+        second = np.asarray(mi.render(scene, spp=spp, seed=2), dtype=np.float64)[..., :3]
+        l1, rmse = seed_difference(first, second)
+        print(f"| {name} | {l1:.4f} | {rmse:.4f} | {seconds:.2f} |", flush=True)
 
 
 if __name__ == "__main__":
