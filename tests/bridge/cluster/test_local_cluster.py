@@ -72,9 +72,9 @@ def test02b_local_workers_run_without_dasks_profiler(cluster):
 def test03_a_worker_killed_mid_render_costs_only_its_task(cluster, tmp_path):
     from distributed import get_task_stream
 
-    # 128 x 96 pixels: chunks of 512 spp (6.3 M samples, seconds each on one core), four of them.
-    folder = export_scene(tmp_path / "big", film=(128, 96))
-    spp, seed = 2048, 5
+    # 96 x 80 pixels: chunks of 1024 spp (7.9 M samples, seconds each on one core), four of them.
+    folder = export_scene(tmp_path / "big", film=(96, 80))
+    spp, seed = 4096, 5
     reference = one_process_render(folder, tmp_path / "one.exr", spp, seed)
     outcome, killed = {}, []
 
