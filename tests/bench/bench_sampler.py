@@ -99,7 +99,10 @@ def rank_mitsuba_samplers(description, spp: int) -> None:
     print("|---|---|---|---|")
     for name in ("independent", "stratified", "multijitter", "ldsampler", "orthogonal"):
         probe = mi.load_dict({"type": name})
+        level = mi.log_level()
+        mi.set_log_level(mi.LogLevel.Error)  # (the rounding's warning: said in the table instead)
         probe.set_sample_count(spp)
+        mi.set_log_level(level)
         if probe.sample_count() != spp:
             print(f"| {name} | renders {probe.sample_count()} spp, not {spp} | | |")
             continue
