@@ -28,8 +28,8 @@ from .memory import NotEnoughMemory, check_memory
 from .schedule import (MAX_SAMPLES_PER_PASS, Chunk, PairwiseSum, ScheduleError, part_range, pass_seed,
                        sample_schedule)
 
-__all__ = ["Progress", "Refresh", "RenderPlan", "plan_render", "check_sampler", "check_film_memory", "render_passes", "render_chunks",
-           "render_image",
+__all__ = ["Progress", "Refresh", "RenderPlan", "plan_render", "check_sampler", "check_film_memory", "render_passes",
+           "render_chunks", "render_image",
            "film_pixels", "pass_seed",
            "sample_schedule", "Chunk", "MAX_SAMPLES_PER_PASS", "NotEnoughMemory", "ScheduleError"]
 
@@ -245,8 +245,8 @@ def check_sampler(scene, chunks) -> None:
         probe = sampler.clone()
         probe.set_sample_count(spp)
         if int(probe.sample_count()) != spp:
-            raise ScheduleError(f"the scene's sampler ({sampler.class_name()}) renders {int(probe.sample_count())} spp where a "
-                                f"chunk of this render takes {spp}: use the independent or multijitter sampler")
+            raise ScheduleError(f"the scene's sampler ({sampler.class_name()}) renders {int(probe.sample_count())} spp "
+                                f"where a chunk of this render takes {spp}: use the independent or multijitter sampler")
 
 
 def check_film_memory(width: int, height: int, spp: int, seed: int = 0):

@@ -63,8 +63,8 @@ from typing import Callable
 import numpy as np
 
 __all__ = ["MAX_SAMPLES_PER_PASS", "MAX_CHUNKS", "SMALL_CHUNK_SPP", "GPU_CHUNK_SPP", "ScheduleError", "Chunk", "Node",
-           "SAMPLER_SIZES",
-           "sample_schedule", "chunk_spp", "stratified_size", "pass_seed", "part_range", "tree_nodes", "tree_sum", "root", "PairwiseSum"]
+           "SAMPLER_SIZES", "sample_schedule", "chunk_spp", "stratified_size", "pass_seed", "part_range", "tree_nodes",
+           "tree_sum", "root", "PairwiseSum"]
 
 #: Samples per ``mi.render`` call (a chunk): 720 × 450 takes 16 spp (one pixel per 16-lane SIMD packet),
 #: 1080p 4; Esc waits for the chunk in flight (docs/rendering.md, What a chunk's size costs).

@@ -44,8 +44,8 @@ import numpy as np
 from ..errors import ParameterError
 from .materials import RGB, Texture, Volume
 
-__all__ = ["SAMPLERS", "Film", "Camera", "MeshData", "Shape", "PointLight", "SpotLight", "SunLight", "AreaLight", "Light",
-           "ConstantWorld", "EnvironmentWorld", "SkyWorld", "World", "RenderSettings", "SceneDescription",
+__all__ = ["Film", "Camera", "MeshData", "Shape", "PointLight", "SpotLight", "SunLight", "AreaLight", "Light",
+           "ConstantWorld", "EnvironmentWorld", "SkyWorld", "World", "RenderSettings", "SceneDescription", "SAMPLERS",
            "FILTERS", "LIGHT_TYPES", "WORLD_TYPES", "orthonormal", "affine"]
 
 #: Reconstruction filters offered to users.  Box is the default: glints are
