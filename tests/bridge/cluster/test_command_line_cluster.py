@@ -121,11 +121,13 @@ def test02_a_worker_without_the_package_or_with_other_software_is_refused(schedu
 
 
 def test03_ctrl_c_cancels_the_render_on_the_cluster(scheduler, workers, tmp_path):
-    folder = export_scene(tmp_path / "big", film=(128, 96))  # 16 chunks of 256 spp: seconds each
-    count = len(sample_schedule(4096, 128 * 96))
+    # 64 chunks of 256 spp (seconds each here): a fast machine is still far from done after 3 s; the render is
+    # cancelled, so the rest never runs
+    folder = export_scene(tmp_path / "big", film=(128, 96))
+    count = len(sample_schedule(16384, 128 * 96))
     process = subprocess.Popen([sys.executable, "-m", "scratch_iridescence.mitsuba_bridge", "render", str(folder),
                                 "-o", str(tmp_path / "out.exr"), "--cluster", scheduler[0], "--variant", VARIANT,
-                                "--spp", "4096"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                                "--spp", "16384"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     for line in process.stdout:
         if "tasks on 2 workers" in line:
             break
