@@ -86,10 +86,11 @@ def test03_a_worker_killed_mid_render_costs_only_its_task(cluster, tmp_path):
         thread.start()
         deadline, seen = time.time() + 300, {}
         while not killed and time.time() < deadline and thread.is_alive():
-            # A worker that has been rendering a chunk for two seconds (a chunk takes longer): kill it mid-task.
+            # A worker that has been rendering a chunk for a second (a chunk takes longer, even on a fast
+            # machine): kill it mid-task.
             for address, keys in cluster.client.processing().items():
                 for key in keys:
-                    if "scratch-chunks" in str(key) and time.time() - seen.setdefault(key, time.time()) > 2.0:
+                    if "scratch-chunks" in str(key) and time.time() - seen.setdefault(key, time.time()) > 1.0:
                         pid = cluster.client.run(os.getpid, workers=[address])[address]
                         os.kill(pid, signal.SIGKILL)
                         killed.append(address)
