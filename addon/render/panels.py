@@ -61,6 +61,7 @@ class SCRATCH_PT_render_sampling(_RenderPanel, bpy.types.Panel):
         layout.prop(settings, "viewport_freeze")
         layout.prop(settings, "seed")
         layout.prop(settings, "max_depth")
+        layout.prop(settings, "sampler")
         layout.prop(settings, "footprint_filter")
 
 

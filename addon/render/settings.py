@@ -76,6 +76,16 @@ class SCRATCH_PG_render(bpy.types.PropertyGroup):
                     "Off: every sample sees one point, as the paper renders. Off by default for now: far views "
                     "(many scratches per pixel) cost much more per sample with it",
         default=False, update=_tag_scene)
+    sampler: EnumProperty(
+        name="Sampler",
+        description="How each pixel's samples are spread",
+        # Explicit numbers: files store the number, so a new item takes a new one whatever its place
+        items=[("multijitter", "Multi-Jittered", "Correlated multi-jittered samples (Mitsuba's multijitter): "
+                                                 "stratified within each chunk of samples, less noise at equal "
+                                                 "samples", 0),
+               ("independent", "Independent", "Independent uniform random samples (Mitsuba's independent), as "
+                                              "renders before the stratified sampler: for validation", 1)],
+        default="multijitter", update=_tag_scene)
     film_filter: EnumProperty(
         name="Pixel Filter", description="Reconstruction filter of the film",
         items=_FILTER_ITEMS, default="box", update=_tag_scene)

@@ -64,7 +64,7 @@ def sensor_dict(camera: Camera, film: Film, settings: RenderSettings, *, medium=
         near_clip=float(camera.near),
         far_clip=float(camera.far),
         film=film_dict(film),
-        sampler={"type": "independent", "sample_count": int(settings.spp), "seed": int(settings.seed)},
+        sampler={"type": settings.sampler, "sample_count": int(settings.spp), "seed": int(settings.seed)},
     )
     if medium is not None:
         sensor["medium"] = medium

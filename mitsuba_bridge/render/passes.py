@@ -2,8 +2,10 @@
 
 Chunks give progress updates, let a caller cancel within one chunk and bound
 memory (one chunk holds ``pixels × chunk spp`` samples in flight).  With
-Mitsuba's independent sampler every chunk is an unbiased estimate, so the
-spp-weighted mean of the chunks is the image one long render gives.
+Mitsuba's independent sampler, or the stratified ``multijitter`` of each chunk's
+own seed, every chunk is an unbiased estimate, so the spp-weighted mean of the
+chunks is an unbiased image (:func:`check_sampler` makes sure each chunk renders
+the samples it weighs).
 
 The schedule (:func:`~mitsuba_bridge.render.schedule.sample_schedule`) depends only on
 spp, the pixel count and the seed, and the chunks are summed in one fixed order
@@ -26,8 +28,8 @@ from .memory import NotEnoughMemory, check_memory
 from .schedule import (MAX_SAMPLES_PER_PASS, Chunk, PairwiseSum, ScheduleError, part_range, pass_seed,
                        sample_schedule)
 
-__all__ = ["Progress", "Refresh", "RenderPlan", "plan_render", "check_film_memory", "render_passes", "render_chunks",
-           "render_image",
+__all__ = ["Progress", "Refresh", "RenderPlan", "plan_render", "check_sampler", "check_film_memory", "render_passes",
+           "render_chunks", "render_image",
            "film_pixels", "pass_seed",
            "sample_schedule", "Chunk", "MAX_SAMPLES_PER_PASS", "NotEnoughMemory", "ScheduleError"]
 
@@ -220,7 +222,8 @@ class RenderPlan:
 def plan_render(scene, spp: int, *, seed: int = 0) -> RenderPlan:
     """The :class:`RenderPlan` of ``scene`` at ``spp`` samples per pixel, every chunk selected.
 
-    Raises :class:`~mitsuba_bridge.render.schedule.ScheduleError` (a ``ValueError``) for impossible counts.
+    Raises :class:`~mitsuba_bridge.render.schedule.ScheduleError` (a ``ValueError``) for impossible counts and for
+    a sampler that would render other counts than the schedule's (:func:`check_sampler`).
     """
     from ..device.variants import on_gpu
 
@@ -228,7 +231,22 @@ def plan_render(scene, spp: int, *, seed: int = 0) -> RenderPlan:
         raise ValueError("spp must be at least 1")
     width, height = (int(c) for c in scene.sensors()[0].film().crop_size())
     chunks = sample_schedule(spp, width * height, seed, gpu=on_gpu())
+    check_sampler(scene, chunks)
     return RenderPlan(width, height, spp, seed, chunks, chunks)
+
+
+def check_sampler(scene, chunks) -> None:
+    """Raise :class:`~mitsuba_bridge.render.schedule.ScheduleError` when the scene's sampler would not render
+    a chunk's spp as it is (Mitsuba's stratified samplers round counts up: ``ldsampler`` makes 1 spp 4), since
+    the chunk's image is weighed by its spp.  The renderer writes only samplers that take every size of a schedule
+    (:data:`~mitsuba_bridge.render.schedule.SAMPLER_SIZES`); a hand-written scene.xml may hold another."""
+    sampler = scene.sensors()[0].sampler()
+    for spp in sorted({chunk.spp for chunk in chunks}):
+        probe = sampler.clone()
+        probe.set_sample_count(spp)
+        if int(probe.sample_count()) != spp:
+            raise ScheduleError(f"the scene's sampler ({sampler.class_name()}) renders {int(probe.sample_count())} spp "
+                                f"where a chunk of this render takes {spp}: use the independent or multijitter sampler")
 
 
 def check_film_memory(width: int, height: int, spp: int, seed: int = 0):

@@ -37,8 +37,16 @@ machine or spread over many (``--chunk K/N`` and ``merge`` on the command line).
   warps gets their atomic additions in whatever order they ran).  The schedule is
   then another one (its digest differs), and split renders merge only parts
   of one variant anyway.
+* **Sizes every sampler takes as they are.**  Mitsuba's stratified samplers round a
+  render call's spp to the counts they can stratify, and a chunk must render exactly
+  the samples its weight says.  The renderer's samplers (``multijitter``, the default,
+  and ``independent``; docs/rendering.md, The sampler) both take 1, 2, 4, 8 and 16 and
+  every even power of two (64, 256, ... 16 384), not 32, 128, 512, 2 048 or 8 192
+  (``multijitter`` would make 32 spp 35): a full chunk of such a size takes half of it
+  (:func:`stratified_size`).  Every size of a schedule is one of :data:`SAMPLER_SIZES`.
 * **Seeds.**  Chunk ``i`` uses :func:`pass_seed` ``(seed, i)``: distinct
-  32-bit seeds, so chunks draw independent samples.
+  32-bit seeds, so chunks draw independent samples (a stratified sampler stratifies
+  within a chunk; chunks add like independent estimates).
 * **Sum.**  Chunk ``i`` contributes ``float64(image_i) × spp_i`` (exact: a
   float32 times an integer below 2**29 fits in a float64).  The contributions
   are added pairwise along a fixed binary tree over the chunk indices
@@ -55,7 +63,8 @@ from typing import Callable
 import numpy as np
 
 __all__ = ["MAX_SAMPLES_PER_PASS", "MAX_CHUNKS", "SMALL_CHUNK_SPP", "GPU_CHUNK_SPP", "ScheduleError", "Chunk", "Node",
-           "sample_schedule", "chunk_spp", "pass_seed", "part_range", "tree_nodes", "tree_sum", "root", "PairwiseSum"]
+           "SAMPLER_SIZES", "sample_schedule", "chunk_spp", "stratified_size", "pass_seed", "part_range", "tree_nodes",
+           "tree_sum", "root", "PairwiseSum"]
 
 #: Samples per ``mi.render`` call (a chunk): 720 × 450 takes 16 spp (one pixel per 16-lane SIMD packet),
 #: 1080p 4; Esc waits for the chunk in flight (docs/rendering.md, What a chunk's size costs).
@@ -66,6 +75,9 @@ MAX_CHUNKS = 1 << 20
 SMALL_CHUNK_SPP = 4
 #: On a GPU, full chunks take at most this many spp: a pixel's samples stay in one 32-lane warp.
 GPU_CHUNK_SPP = 32
+#: The chunk sizes every sampler the renderer writes takes as they are (``multijitter``: 2**k for k <= 4 or
+#: even k; ``independent``: any): a schedule is made of these only.
+SAMPLER_SIZES = frozenset(1 << k for k in range(15) if k <= 4 or k % 2 == 0)
 #: Dr.Jit's LLVM work block (``jit_llvm_block_size``): full chunks take at most this many spp.
 _BLOCK_SAMPLES = 16384
 #: Calls above this hand out whole 16 384-sample blocks on machines with up to 64 threads.
@@ -106,18 +118,27 @@ def pass_seed(seed: int, index: int) -> int:
     return (int(seed) * 0x9E3779B1 + int(index)) & 0xFFFFFFFF
 
 
+def stratified_size(spp: int) -> int:
+    """The largest of :data:`SAMPLER_SIZES` within ``spp`` (a power of two from 1 to 16 384): ``spp`` itself,
+    or half of it where the stratified sampler would round it up (32 → 16, 8 192 → 4 096)."""
+    size = 1 << (max(int(spp), 1).bit_length() - 1)
+    while size not in SAMPLER_SIZES:
+        size >>= 1
+    return size
+
+
 def chunk_spp(pixels: int, *, gpu: bool = False) -> int:
     """Samples per pixel of a full chunk of a ``pixels``-pixel film (see the module docstring).
 
-    The largest power of two ``s ≤ 16 384`` with ``pixels × s ≤ MAX_SAMPLES_PER_PASS``;
+    The largest of :data:`SAMPLER_SIZES` ``s ≤ 16 384`` with ``pixels × s ≤ MAX_SAMPLES_PER_PASS``;
     when that call would still hold no more than :data:`_LARGE_CALL_SAMPLES`
     samples (films under 129 pixels), :data:`SMALL_CHUNK_SPP`.  ``gpu``: at most
     :data:`GPU_CHUNK_SPP` instead (a pixel in one 32-lane warp or SIMD group; a GPU has no CPU threads' blocks).
     """
     budget = max(1, MAX_SAMPLES_PER_PASS // max(int(pixels), 1))
-    full = min(1 << (budget.bit_length() - 1), _BLOCK_SAMPLES)
+    full = stratified_size(min(budget, _BLOCK_SAMPLES))
     if gpu:
-        return min(full, GPU_CHUNK_SPP)
+        return stratified_size(min(full, GPU_CHUNK_SPP))
     if full > SMALL_CHUNK_SPP and int(pixels) * full <= _LARGE_CALL_SAMPLES:
         return SMALL_CHUNK_SPP
     return full
@@ -146,12 +167,12 @@ def sample_schedule(spp: int, pixels: int, seed: int = 0, *, gpu: bool = False) 
 
     Examples
     --------
-    >>> [c.spp for c in sample_schedule(100, 512 * 512)]
-    [32, 32, 32, 4]
+    >>> [c.spp for c in sample_schedule(100, 720 * 450)]
+    [16, 16, 16, 16, 16, 16, 4]
     >>> [c.spp for c in sample_schedule(8192 + 11, 32 * 24)]
-    [8192, 4, 4, 2, 1]
+    [4096, 4096, 4, 4, 2, 1]
     >>> [c.spp for c in sample_schedule(100, 32 * 24, gpu=True)]
-    [32, 32, 32, 4]
+    [16, 16, 16, 16, 16, 16, 4]
     """
     spp, pixels = int(spp), int(pixels)
     if spp < 1:
@@ -159,7 +180,7 @@ def sample_schedule(spp: int, pixels: int, seed: int = 0, *, gpu: bool = False) 
     if pixels < 1:
         raise ScheduleError(f"the film must have at least one pixel, got {pixels}")
     full = chunk_spp(pixels, gpu=gpu)
-    within = 1 << (spp.bit_length() - 1)  # the largest power of two within spp
+    within = stratified_size(spp)  # the largest size within spp
     if SMALL_CHUNK_SPP < within < full and (gpu or pixels * within > _LARGE_CALL_SAMPLES):
         full = within  # fewer spp than a full chunk: one chunk of the most it can take, not 4-spp ones
     count = spp // full + (spp % full) // SMALL_CHUNK_SPP + 2

@@ -8,14 +8,14 @@ and :mod:`.colour` converts colour spaces.
 """
 from __future__ import annotations
 
-from .description import (FILTERS, LIGHT_TYPES, WORLD_TYPES, AreaLight, Camera, ConstantWorld, EnvironmentWorld,
-                          Film, Light, MeshData, PointLight, RenderSettings, SceneDescription, Shape, SkyWorld,
-                          SpotLight, SunLight, World, affine, orthonormal)
+from .description import (FILTERS, LIGHT_TYPES, SAMPLERS, WORLD_TYPES, AreaLight, Camera, ConstantWorld,
+                          EnvironmentWorld, Film, Light, MeshData, PointLight, RenderSettings, SceneDescription, Shape,
+                          SkyWorld, SpotLight, SunLight, World, affine, orthonormal)
 from .materials import (RGB, TEXTURE_COORDINATES, Add, Bump, Checker, Dielectric, Diffuse, Emission, Glossy,
                         Interface, Mask, Material, Mix, NormalMap, Principled, ScratchedMetal, Texture, Translucent,
                         Transparent, Value, Volume, Volumetric, walk_materials)
 
-__all__ = ["FILTERS", "LIGHT_TYPES", "WORLD_TYPES", "affine", "AreaLight", "Camera", "ConstantWorld",
+__all__ = ["FILTERS", "LIGHT_TYPES", "SAMPLERS", "WORLD_TYPES", "affine", "AreaLight", "Camera", "ConstantWorld",
            "EnvironmentWorld", "Film", "Light", "MeshData", "PointLight", "RenderSettings", "SceneDescription",
            "Shape", "SkyWorld", "SpotLight", "SunLight", "World",
            "orthonormal", "RGB", "Add", "Bump", "Checker", "Dielectric", "Diffuse", "Emission", "Glossy", "Mask",

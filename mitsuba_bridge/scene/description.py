@@ -45,7 +45,7 @@ from ..errors import ParameterError
 from .materials import RGB, Texture, Volume
 
 __all__ = ["Film", "Camera", "MeshData", "Shape", "PointLight", "SpotLight", "SunLight", "AreaLight", "Light",
-           "ConstantWorld", "EnvironmentWorld", "SkyWorld", "World", "RenderSettings", "SceneDescription",
+           "ConstantWorld", "EnvironmentWorld", "SkyWorld", "World", "RenderSettings", "SceneDescription", "SAMPLERS",
            "FILTERS", "LIGHT_TYPES", "WORLD_TYPES", "orthonormal", "affine"]
 
 #: Reconstruction filters offered to users.  Box is the default: glints are
@@ -390,6 +390,12 @@ WORLD_TYPES = (ConstantWorld, EnvironmentWorld, SkyWorld)
 
 # ---- the whole scene -------------------------------------------------------------------------
 
+#: Mitsuba's samplers a render may use: ``multijitter`` (the default, correlated multi-jittered: stratified in 2D
+#: and in 1D within each chunk of the schedule) and ``independent`` (uniform random numbers, the renders before it;
+#: for validation).  docs/rendering.md, The sampler, says why these two and what the choice costs.
+SAMPLERS = ("multijitter", "independent")
+
+
 @dataclass(frozen=True)
 class RenderSettings:
     """How to render, as opposed to what."""
@@ -403,6 +409,8 @@ class RenderSettings:
     footprint_filter: bool = False
     #: also render Blender's data passes (Depth, Denoising Albedo and Normal; F12 when the view layer asks)
     data_passes: bool = False
+    #: Mitsuba's sampler, one of :data:`SAMPLERS` (written into scene.xml)
+    sampler: str = "multijitter"
 
     def __post_init__(self):
         _whole("spp", self.spp, 1)
@@ -413,6 +421,8 @@ class RenderSettings:
             raise ParameterError(f"variant must be a name, got {self.variant!r}")
         if not isinstance(self.data_passes, (bool, np.bool_)):
             raise ParameterError(f"data_passes must be True or False, got {self.data_passes!r}")
+        if self.sampler not in SAMPLERS:
+            raise ParameterError(f"sampler must be one of {', '.join(SAMPLERS)}, got {self.sampler!r}")
 
 
 @dataclass(frozen=True, eq=False)

@@ -170,6 +170,9 @@ def test08_coherent_grating_bands_take_different_colours_incoherent_ones_do_not(
     assert colour_spread(coherent) > 0.3 > 0.15 > colour_spread(incoherent)
 
 
+# (two renders of the CD's 1.6 µm tracks, ~60 s here; test08's grating keeps the coherent/incoherent contrast in
+# make test: under the slow marker)
+@pytest.mark.slow
 def test09_coherent_cd_shows_rainbow_orders_that_vanish_incoherently(empty_scene, tmp_path):
     disc = fig06_cd.build_scene(empty_scene, coherent=True, track_radii_m=(0.030, 0.052), workdir=tmp_path, **TINY)
     coherent = render(empty_scene, tmp_path / "coherent.exr", (96, 72), 16)
@@ -183,6 +186,8 @@ def test09_coherent_cd_shows_rainbow_orders_that_vanish_incoherently(empty_scene
 
 
 # ------------------------------------------------------------- make paper
+# (fresh worker processes import and compile everything anew: ~65 s here; under the slow marker)
+@pytest.mark.slow
 def test10_paper_runner_builds_renders_and_writes_the_pages(tmp_path):
     """``make paper`` in miniature: the grated plate at 5 % resolution, built and rendered by fresh worker
     processes; the pictures, the statistics and both pages read back."""

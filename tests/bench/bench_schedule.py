@@ -5,7 +5,7 @@ The scratched plate of tests/bridge/builder/test_scratched.py (3 000 scratches) 
 ratios mean much):
 
 1. one ``mi.render(spp=64)`` call (no progress, no cancel, unbounded memory);
-2. ``render_image`` (the schedule: 2 chunks of 32 spp, pairwise float64 sums);
+2. ``render_image`` (the schedule: 4 chunks of 16 spp, pairwise float64 sums);
 3. the same render split into 4 parts (``render_chunks`` + ``write_part``) and
    ``merge_parts``: the merge alone, and that the result equals (2) bit for bit.
 

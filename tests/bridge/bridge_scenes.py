@@ -96,3 +96,39 @@ def interrupting_scene():
         signal.signal(signal.SIGINT, previous)
         del scene
         gc.collect()
+
+
+def sphere(radius=0.5, name="sphere", rings=16, segments=32) -> S.MeshData:
+    """A UV sphere centred on the origin, smooth normals."""
+    theta = np.linspace(0.0, np.pi, rings + 1)[:, None]
+    phi = np.linspace(0.0, 2.0 * np.pi, segments + 1)[None, :]
+    normals = np.stack(np.broadcast_arrays(np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi),
+                                           np.cos(theta)), axis=-1).reshape(-1, 3).astype(np.float32)
+    row = segments + 1
+    corners = np.array([(r * row + s, (r + 1) * row + s, (r + 1) * row + s + 1, r * row + s + 1)
+                        for r in range(rings) for s in range(segments)], np.uint32)
+    faces = np.concatenate([corners[:, [0, 1, 2]], corners[:, [0, 2, 3]]])
+    return S.MeshData(name, radius * normals, faces, normals, None)
+
+
+def diffuse_scene(film) -> S.SceneDescription:
+    """Two diffuse spheres on a grey floor, lit by a tilted area light out of view and a dim world.
+
+    Soft shadows, indirect light and object edges: what a sampler's stratification smooths (the seed-to-seed
+    noise of ``tests/bench/bench_sampler.py`` and ``tests/bridge/render/test_sampler.py``).
+    """
+    def at(x, y, z):
+        matrix = np.eye(4)
+        matrix[:3, 3] = (x, y, z)
+        return matrix
+
+    light = at(2.2, 0.0, 1.5)
+    angle = np.radians(45.0)  # its -Z (the emitting side) turned towards the spheres
+    light[:3, :3] = [[np.cos(angle), 0, np.sin(angle)], [0, 1, 0], [-np.sin(angle), 0, np.cos(angle)]]
+    shapes = (S.Shape("floor", quad(4.0), np.eye(4), "grey"),
+              S.Shape("red", sphere(0.5, "red"), at(-0.3, 0.2, 0.5), "red"),
+              S.Shape("blue", sphere(0.3, "blue"), at(0.6, -0.5, 0.3), "blue"))
+    materials = {"grey": S.Diffuse((0.5, 0.5, 0.5)), "red": S.Diffuse((0.7, 0.2, 0.15)),
+                 "blue": S.Diffuse((0.15, 0.25, 0.7))}
+    return simple_scene(film=film, shapes=shapes, materials=materials, world=S.ConstantWorld((0.1, 0.1, 0.1)),
+                        lights=[S.AreaLight(light, "rectangle", 1.0, 1.0, (6.0, 6.0, 6.0))])

@@ -42,7 +42,8 @@ def renderable_instances(depsgraph):
 def gather_settings(scene) -> RenderSettings:
     settings = scene.scratch_iridescence
     return RenderSettings(spp=settings.samples, max_depth=settings.max_depth, seed=settings.seed,
-                          variant=settings.variant, footprint_filter=settings.footprint_filter)
+                          variant=settings.variant, footprint_filter=settings.footprint_filter,
+                          sampler=settings.sampler)
 
 
 def gather_scene(depsgraph, *, camera=None, view=None) -> SceneDescription:

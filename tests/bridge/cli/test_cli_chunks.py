@@ -18,12 +18,14 @@ VARIANT = ["--variant", "llvm_ad_spectral"]
 SPP = "31"  # 32 x 24 pixels: seven chunks of 4 spp, then 2 and 1 (nine chunks: uneven trees)
 
 
-@pytest.fixture(scope="module")
-def folder(variant, tmp_path_factory):
+@pytest.fixture(scope="module", params=S.SAMPLERS)
+def folder(variant, tmp_path_factory, request):
+    """The scene exported with each sampler (the stratified default and the independent one): parts of either
+    merge into its whole render."""
     path = tmp_path_factory.mktemp("chunks") / "scene"
     description = simple_scene(lights=[S.PointLight((0, 0, 2), (1.0, 1.0, 1.0))],
                                world=S.ConstantWorld((0.2, 0.2, 0.2)))
-    export.export_folder(description, S.RenderSettings(spp=4), path)
+    export.export_folder(description, S.RenderSettings(spp=4, sampler=request.param), path)
     return path
 
 

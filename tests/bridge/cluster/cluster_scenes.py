@@ -25,8 +25,9 @@ def worker_sys_path():
         sys.path[:] = saved
 
 
-def export_scene(folder, *, film=(32, 24), light=(1.0, 1.0, 1.0)):
-    """A lit grey floor exported to ``folder`` (different ``light`` values give different scenes)."""
+def export_scene(folder, *, film=(32, 24), light=(1.0, 1.0, 1.0), sampler="multijitter"):
+    """A lit grey floor exported to ``folder`` (different ``light`` values give different scenes), rendered with
+    Mitsuba's ``sampler``."""
     from bridge_scenes import simple_scene
     from scratch_iridescence.mitsuba_bridge import scene as S
     from scratch_iridescence.mitsuba_bridge.folder import export
@@ -35,7 +36,7 @@ def export_scene(folder, *, film=(32, 24), light=(1.0, 1.0, 1.0)):
     activate(VARIANT)  # the export writes Mitsuba transforms: whichever test runs first needs the variant
     description = simple_scene(film=S.Film(*film), lights=[S.PointLight((0, 0, 2), light)],
                                world=S.ConstantWorld((0.2, 0.2, 0.2)))
-    export.export_folder(description, S.RenderSettings(spp=4), folder)
+    export.export_folder(description, S.RenderSettings(spp=4, sampler=sampler), folder)
     return folder
 
 

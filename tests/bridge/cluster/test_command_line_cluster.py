@@ -16,6 +16,7 @@ import pytest
 
 from cluster_scenes import VARIANT, export_scene, one_process_render
 from scratch_iridescence.mitsuba_bridge.files.exr import read_exr
+from scratch_iridescence.mitsuba_bridge.render.schedule import sample_schedule
 
 pytestmark = pytest.mark.slow
 HERE = Path(__file__).resolve().parent
@@ -120,10 +121,13 @@ def test02_a_worker_without_the_package_or_with_other_software_is_refused(schedu
 
 
 def test03_ctrl_c_cancels_the_render_on_the_cluster(scheduler, workers, tmp_path):
-    folder = export_scene(tmp_path / "big", film=(128, 96))  # chunks of 512 spp: seconds each
+    # 64 chunks of 256 spp (seconds each here): a fast machine is still far from done after 3 s; the render is
+    # cancelled, so the rest never runs
+    folder = export_scene(tmp_path / "big", film=(128, 96))
+    count = len(sample_schedule(16384, 128 * 96))
     process = subprocess.Popen([sys.executable, "-m", "scratch_iridescence.mitsuba_bridge", "render", str(folder),
                                 "-o", str(tmp_path / "out.exr"), "--cluster", scheduler[0], "--variant", VARIANT,
-                                "--spp", "4096"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                                "--spp", "16384"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     for line in process.stdout:
         if "tasks on 2 workers" in line:
             break
@@ -133,10 +137,10 @@ def test03_ctrl_c_cancels_the_render_on_the_cluster(scheduler, workers, tmp_path
     assert process.returncode == 130, err
     assert "interrupted: nothing was written" in err, (out, err)
     # Every task not finished when Ctrl-C came is cancelled; on a fast machine some finished in the 3 s before it
-    # (done, with or without their progress line yet), so the count is 8 less those, never zero.
+    # (done, with or without their progress line yet), so the count is the chunks less those, never zero.
     cancelled = re.search(r"cancelled (\d+) task\(s\) on the cluster", out)
-    done = [int(n) for n in re.findall(r"(\d+)/8 chunks", out)]
-    assert cancelled and 1 <= int(cancelled.group(1)) <= 8 - max(done, default=0), (out, err)
+    done = [int(n) for n in re.findall(rf"(\d+)/{count} chunks", out)]
+    assert cancelled and 1 <= int(cancelled.group(1)) <= count - max(done, default=0), (out, err)
     assert not (tmp_path / "out.exr").exists()
     client = scheduler[2]
     deadline = time.time() + 60  # a task already rendering finishes its chunk (seconds), nothing else runs

@@ -25,13 +25,16 @@ def cluster(variant):
         yield Cluster(client, software_identity())
 
 
-@pytest.fixture(scope="module")
-def reference(scene_folder, tmp_path_factory):
-    return one_process_render(scene_folder, tmp_path_factory.mktemp("one") / "one.exr", SPP, SEED)
+@pytest.fixture(scope="module", params=["multijitter", "independent"])
+def sampled_scene(variant, tmp_path_factory, request):
+    """The test scene exported with each of the renderer's samplers, and its one-process render."""
+    folder = export_scene(tmp_path_factory.mktemp(request.param) / "scene", sampler=request.param)
+    return folder, one_process_render(folder, folder.parent / "one.exr", SPP, SEED)
 
 
 @pytest.mark.parametrize("chunks_per_task", [None, 4])
-def test01_the_cluster_renders_the_one_process_image_bit_for_bit(cluster, scene_folder, reference, chunks_per_task):
+def test01_the_cluster_renders_the_one_process_image_bit_for_bit(cluster, sampled_scene, chunks_per_task):
+    scene_folder, reference = sampled_scene
     result = cluster.render(scenes.pack_folder(scene_folder), variant=VARIANT, spp=SPP, seed=SEED,
                             chunks_per_task=chunks_per_task)
     assert result.chunk_count == 9 and result.tasks == (9 if chunks_per_task is None else 3)
@@ -69,9 +72,9 @@ def test02b_local_workers_run_without_dasks_profiler(cluster):
 def test03_a_worker_killed_mid_render_costs_only_its_task(cluster, tmp_path):
     from distributed import get_task_stream
 
-    # 128 x 96 pixels: chunks of 512 spp (6.3 M samples, seconds each on one core), four of them.
-    folder = export_scene(tmp_path / "big", film=(128, 96))
-    spp, seed = 2048, 5
+    # 96 x 80 pixels: chunks of 1024 spp (7.9 M samples, seconds each on one core), four of them.
+    folder = export_scene(tmp_path / "big", film=(96, 80))
+    spp, seed = 4096, 5
     reference = one_process_render(folder, tmp_path / "one.exr", spp, seed)
     outcome, killed = {}, []
 
@@ -83,10 +86,11 @@ def test03_a_worker_killed_mid_render_costs_only_its_task(cluster, tmp_path):
         thread.start()
         deadline, seen = time.time() + 300, {}
         while not killed and time.time() < deadline and thread.is_alive():
-            # A worker that has been rendering a chunk for two seconds (a chunk takes longer): kill it mid-task.
+            # A worker that has been rendering a chunk for a second (a chunk takes longer, even on a fast
+            # machine): kill it mid-task.
             for address, keys in cluster.client.processing().items():
                 for key in keys:
-                    if "scratch-chunks" in str(key) and time.time() - seen.setdefault(key, time.time()) > 2.0:
+                    if "scratch-chunks" in str(key) and time.time() - seen.setdefault(key, time.time()) > 1.0:
                         pid = cluster.client.run(os.getpid, workers=[address])[address]
                         os.kill(pid, signal.SIGKILL)
                         killed.append(address)

@@ -94,12 +94,13 @@ def test10_asking_for_metal_without_an_apple_gpu_says_so(mac_wheel, monkeypatch)
 
 
 def test11_metal_renders_with_the_gpu_schedule_and_whole_passes():
-    from scratch_iridescence.mitsuba_bridge.render.schedule import GPU_CHUNK_SPP, sample_schedule
+    from scratch_iridescence.mitsuba_bridge.render.schedule import GPU_CHUNK_SPP, sample_schedule, stratified_size
 
     assert variants.is_gpu_variant("metal_ad_spectral") and variants.is_gpu_variant("cuda_ad_spectral")
     assert not variants.is_gpu_variant("llvm_ad_spectral")
     chunks = sample_schedule(4096, 32 * 24, gpu=variants.is_gpu_variant("metal_ad_spectral"))
-    assert max(chunk.spp for chunk in chunks) == GPU_CHUNK_SPP  # a pixel's samples within one 32-lane SIMD group
+    # a pixel's samples within one 32-lane SIMD group, in a count the stratified sampler takes (16)
+    assert max(chunk.spp for chunk in chunks) == stratified_size(GPU_CHUNK_SPP) == 16
 
 
 def test12_the_plugin_accepts_every_unpolarised_spectral_jit_variant(monkeypatch):

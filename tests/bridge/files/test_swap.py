@@ -90,6 +90,9 @@ def killed_re_export(tmp_path, versions, kill_at: int) -> tuple[Path, subprocess
     return folder, result
 
 
+# (a child process killed at each of the renames in turn: ~30 s here; test02 kills two of them in make test;
+# under the slow marker)
+@pytest.mark.slow
 def test01_a_re_export_killed_at_any_rename_is_old_or_new_after_the_next_render(variant, tmp_path, versions):
     _, references, _ = versions
     completed = killed_re_export(tmp_path, versions, 10 ** 6)[1]  # never killed: how many renames there are

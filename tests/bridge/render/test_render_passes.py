@@ -22,27 +22,31 @@ def spy_on_chunks(monkeypatch, around):
     monkeypatch.setattr(freezing.FrozenRender, "__call__", spied)
 
 
-def test01_schedule_adds_up_to_spp_in_power_of_two_chunks_within_the_memory_bound():
+def test01_schedule_adds_up_to_spp_in_chunks_the_samplers_take_within_the_memory_bound():
     for spp in (1, 7, 64, 100, 1000, 4097):
         for pixels in (1, 768, 512 * 512, 1920 * 1080, 10_000 ** 2):
             chunks = schedule.sample_schedule(spp, pixels, seed=3)
             sizes = [c.spp for c in chunks]
             assert sum(sizes) == spp and [c.index for c in chunks] == list(range(len(chunks)))
             assert all(size & (size - 1) == 0 for size in sizes)  # powers of two
+            assert set(sizes) <= schedule.SAMPLER_SIZES  # none that multijitter rounds (test_sampler.py)
             assert sizes == sorted(sizes, reverse=True)
             assert all(size * pixels <= max(schedule.MAX_SAMPLES_PER_PASS, pixels) for size in sizes)
             assert set(sizes) <= {sizes[0], 4, 2, 1}  # at most four compiled kernels
             # One pixel, one thread: small chunks, or whole Dr.Jit blocks of a call large for 64 threads.
             assert all(size <= 4 or (16384 % size == 0 and pixels * size > 16384 * 2 * 64) for size in sizes)
-    assert [c.spp for c in schedule.sample_schedule(100, 512 * 512)] == [32] * 3 + [4]
+    assert [c.spp for c in schedule.sample_schedule(100, 512 * 512)] == [16] * 6 + [4]  # 32 would round to 35
+    assert [c.spp for c in schedule.sample_schedule(100, 1024 * 1024)] == [8] * 12 + [4]
     assert [c.spp for c in schedule.sample_schedule(256, 720 * 450)] == [16] * 16  # a SIMD packet per pixel
-    assert [c.spp for c in schedule.sample_schedule(8192 + 67, 32 * 24)] == [8192] + [4] * 16 + [2, 1]
+    assert [c.spp for c in schedule.sample_schedule(64, 320 * 200)] == [64]
+    assert [c.spp for c in schedule.sample_schedule(8192 + 67, 32 * 24)] == [4096] * 2 + [4] * 16 + [2, 1]
     assert [c.spp for c in schedule.sample_schedule(64, 2 * 2)] == [4] * 16  # a tiny film: small chunks only
     assert schedule.sample_schedule(5, 4096 * 4096) == schedule.sample_schedule(5, 4096 * 4096)
 
 
 def test01b_the_gpu_schedule_keeps_a_pixel_in_one_warp():
-    """On a GPU full chunks take at most 32 spp (one warp; docs/rendering.md); large films keep their chunks."""
+    """On a GPU full chunks take at most 32 spp (one warp; docs/rendering.md), 16 being the most of those the
+    stratified sampler takes; large films keep their chunks."""
     for spp in (1, 7, 64, 100, 1000, 4097):
         for pixels in (1, 768, 512 * 512, 1920 * 1080, 10_000 ** 2):
             sizes = [c.spp for c in schedule.sample_schedule(spp, pixels, seed=3, gpu=True)]
@@ -50,10 +54,10 @@ def test01b_the_gpu_schedule_keeps_a_pixel_in_one_warp():
             assert all(size & (size - 1) == 0 and size <= schedule.GPU_CHUNK_SPP for size in sizes)
             assert all(size * pixels <= max(schedule.MAX_SAMPLES_PER_PASS, pixels) for size in sizes)
             assert set(sizes) <= {sizes[0], 4, 2, 1}
-            if pixels >= 512 * 512:  # chunks of 32 spp or fewer: the CPU's schedule
+            if pixels >= 512 * 512:  # chunks of 16 spp or fewer: the CPU's schedule
                 assert sizes == [c.spp for c in schedule.sample_schedule(spp, pixels, seed=3)]
-    assert [c.spp for c in schedule.sample_schedule(4096 + 67, 32 * 24, gpu=True)] == [32] * 130 + [2, 1]
-    assert [c.spp for c in schedule.sample_schedule(64, 2 * 2, gpu=True)] == [32, 32]
+    assert [c.spp for c in schedule.sample_schedule(4096 + 67, 32 * 24, gpu=True)] == [16] * 260 + [2, 1]
+    assert [c.spp for c in schedule.sample_schedule(64, 2 * 2, gpu=True)] == [16] * 4
 
 
 def test02_schedule_refuses_what_cannot_be_rendered():
@@ -63,7 +67,7 @@ def test02_schedule_refuses_what_cannot_be_rendered():
         schedule.sample_schedule(4, 0)
     with pytest.raises(schedule.ScheduleError, match="2,000,000,000 spp over 4 pixels would take 500,000,000"):
         schedule.sample_schedule(2_000_000_000, 2 * 2)  # Blender's Samples field allows it; refused at once
-    assert len(schedule.sample_schedule(4_000_000, 32 * 24)) == 488 + 576  # 488 x 8192 + 576 x 4 spp
+    assert len(schedule.sample_schedule(4_000_000, 32 * 24)) == 976 + 576  # 976 x 4096 + 576 x 4 spp
 
 
 def test03_chunk_seeds_differ_across_chunks_and_user_seeds():
@@ -140,8 +144,10 @@ def lit_scene(variant):
 
 def test06_chunks_add_up_to_the_requested_samples_and_report_progress(lit_scene):
     steps = list(render.render_passes(lit_scene, 37))
-    first = 32 if on_gpu() else 4  # the GPU's schedule: [32, 4, 1]; the CPU's small film: 9 x 4 + 1
-    assert [p.spp_done for p in steps] == list(range(first, 37, 4)) + [37] and steps[-1].finished
+    sizes = [c.spp for c in schedule.sample_schedule(37, 32 * 24, gpu=on_gpu())]
+    assert sizes == ([16, 16, 4, 1] if on_gpu() else [4] * 9 + [1])  # the GPU's schedule; the CPU's small film
+    first = sizes[0]
+    assert [p.spp_done for p in steps] == list(np.cumsum(sizes)) and steps[-1].finished
     assert steps[0].fraction == pytest.approx(first / 37)
     assert steps[-1].image.shape == (24, 32, 4) and steps[-1].image.dtype == np.float32
 

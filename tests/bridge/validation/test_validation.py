@@ -38,6 +38,8 @@ def test02_windowed_dft_of_one_scratch_matches_the_per_scratch_reference():
     np.testing.assert_allclose(grid.ravel(), expected, rtol=0, atol=1e-3 * np.abs(expected).max())
 
 
+# (the whole validation run with its brute-force height fields: ~40 s here; under the slow marker)
+@pytest.mark.slow
 def test03_plugin_matches_the_height_field_without_crossings_and_differs_with_them(coarse, variant, tmp_path):
     results = validation.run(tmp_path)
     single, ten = results["configs"]["single"], results["configs"]["ten"]

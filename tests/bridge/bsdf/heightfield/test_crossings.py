@@ -409,10 +409,10 @@ BEYOND_THE_TERMS = {  # sets where the corrections alone exceed the bound |U| <=
 }
 
 
-# (the bunch's case runs ~11 s beyond the kernels it shares with the star of nine, which compiles them when
-# run alone: under the slow marker)
-@pytest.mark.parametrize("name", [pytest.param(name, marks=pytest.mark.slow) if name == "bunch" else name
-                                  for name in BEYOND_THE_TERMS])
+# (~20 s a set with the kernels it compiles; test15 checks the bound on a dense set in make test: under the
+# slow marker)
+@pytest.mark.slow
+@pytest.mark.parametrize("name", BEYOND_THE_TERMS)
 def test16_the_field_never_exceeds_the_height_fields_bound(name):
     """Where the truncated expansion exceeds every height field's |U| <= 2πσ² (docs/model.md §3.4; 1.5x on a
     stress set with the pair terms alone, tests/bench/bench_height_field_bound.py), the clamp caps it:
@@ -609,7 +609,8 @@ ENDED_CROSSINGS = turned_off_the_raster_axes({
 
 
 # (the V-groove's case, a set of both profiles, compiles its own kernels: ~19 s on a cold cache, slow marker)
-@pytest.mark.parametrize("name", [pytest.param(name, marks=pytest.mark.slow) if name == "a V-groove ends" else name
+# (5-8 s each: make test keeps the crossing next to one end, the others under the slow marker)
+@pytest.mark.parametrize("name", [name if name == "one ends" else pytest.param(name, marks=pytest.mark.slow)
                                   for name in ENDED_CROSSINGS])
 def test22_a_crossing_next_to_a_grooves_end_matches_the_height_field(name):
     """Where a groove ends inside the crossing's parallelogram, the overlap ends there too: the pair's cells
