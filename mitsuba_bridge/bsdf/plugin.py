@@ -18,6 +18,7 @@ from .filtered.single import NARROW_ACROSS_SIGMAS
 from .lookup import Grid
 from .model import Model
 from .tables import disk_cache, grid
+from .tables.density import density_table
 from .tables.incremental import update_tables
 from .tables.lines import line_continuation
 from .tables.references import aligned_array
@@ -286,6 +287,9 @@ def _make_class() -> type:
             # the filter's runs (every piece of a straight line, whatever its depth): built with the tables' rows
             self.line_runs = aligned_array(mi.Float, line_continuation(self.tables).ravel()) \
                 if self.footprint_filter else None
+            # the cells' piece densities that cap a footprint's reach in dense regions (docs/model.md §11.8)
+            self.piece_density = aligned_array(mi.Float, density_table(self.tables).ravel()) \
+                if self.footprint_filter else None
             self._rebuild_model()
 
         @property
@@ -307,6 +311,7 @@ def _make_class() -> type:
                 narrow = widest <= NARROW_ACROSS_SIGMAS * dr.slice(sigma)
                 self.model = FilteredModel(**common, footprint_angle=self.footprint_angle,
                                            footprint_width=self.footprint_width, line_continuation=self.line_runs,
+                                           piece_density=self.piece_density,
                                            across_nodes=2 if narrow else 3)
             else:
                 self.model = Model(**common)

@@ -19,8 +19,14 @@ The reference is itself noisy: it is rendered as two halves of different seeds, 
 RMSE is estimated as RMSE(half₁ − half₂)/2 (the halves' difference has twice a half's variance, the
 whole half a half's); rows below about twice that floor measure the reference, not the image.
 
-Run: ``.venv/bin/python tests/bench/bench_convergence.py [--size 240 150] [--spp 16 64 256]
-[--reference-spp 8192]`` (prints a markdown table; docs/benchmarks.md has the figures).
+**Far view** (``--far-size 90 56``): the same plate on a film that shows it ~60 px wide instead of 160, as
+the plate four times farther away would: a sample's footprint covers 7× the plate's length, holding
+many more pieces (the footprint's reach is capped where they are dense, docs/model.md §11.8); its
+rows compare with its own reference, and a last table divides its time per sample and error by the
+close view's.
+
+Run: ``.venv/bin/python tests/bench/bench_convergence.py [--size 240 150] [--far-size 90 56]
+[--spp 16 64 256] [--reference-spp 8192]`` (prints markdown tables; docs/benchmarks.md has the figures).
 """
 from __future__ import annotations
 
@@ -56,43 +62,34 @@ def relative_rmse(image, reference, mask) -> float:
     return float(np.sqrt(np.mean(difference ** 2)) / np.mean(reference[mask]))
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--size", type=int, nargs=2, default=(240, 150), metavar=("WIDTH", "HEIGHT"))
-    parser.add_argument("--spp", type=int, nargs="+", default=[16, 64, 256])
-    parser.add_argument("--reference-spp", type=int, default=8192)
-    args = parser.parse_args()
-
-    from bench_schedule import scratched_plate
+def measure(description, size, spp_list, reference_spp):
+    """``(rows, header)``: every spp of ``spp_list`` with the filter off and on against a point-sampled reference
+    of ``reference_spp``, the plate on a ``size`` film (module docstring)."""
     from scratch_iridescence.mitsuba_bridge import builder
     from scratch_iridescence.mitsuba_bridge import scene as S
-    from scratch_iridescence.mitsuba_bridge.render.activation import activate
     from scratch_iridescence.mitsuba_bridge.render.passes import render_image
 
-    variant = activate("auto")
-    width, height = args.size
-    description = dataclasses.replace(scratched_plate(width), film=S.Film(width, height))
-
-    def scene_for(filtered: bool):
-        return builder.load_scene(description, S.RenderSettings(footprint_filter=filtered))
+    width, height = size
+    description = dataclasses.replace(description, film=S.Film(width, height))
 
     def rgb(image):
         return np.asarray(image, dtype=np.float64)[..., :3]
 
-    scenes = {False: scene_for(False), True: scene_for(True)}
+    scenes = {filtered: builder.load_scene(description, S.RenderSettings(footprint_filter=filtered))
+              for filtered in (False, True)}
     mask = plate_mask(scenes[False])
     for scene in scenes.values():  # compile every kernel once
         render_image(scene, 4, seed=99)
 
     started = time.perf_counter()
-    half = max(args.reference_spp // 2, 1)
+    half = max(reference_spp // 2, 1)
     halves = [rgb(render_image(scenes[False], half, seed=10_000 + k)) for k in range(2)]
     reference_seconds = time.perf_counter() - started
     reference = 0.5 * (halves[0] + halves[1])
     floor = relative_rmse(halves[0], halves[1], mask) / 2.0
 
     rows = []
-    for spp in args.spp:
+    for spp in spp_list:
         for filtered in (False, True):
             began = time.perf_counter()
             image = rgb(render_image(scenes[filtered], spp, seed=spp))
@@ -100,14 +97,18 @@ def main() -> None:
             rows.append(dict(spp=spp, filtered=filtered, error=relative_rmse(image, reference, mask),
                              bias=float(image[mask].mean() / reference[mask].mean() - 1.0),
                              per_sample=seconds / (width * height * spp)))
+    columns = np.nonzero(mask.any(axis=0))[0]
+    plate_width = int(columns.max() - columns.min() + 1) if columns.size else 0
+    header = (f"film {width} × {height} (the plate {plate_width} px wide, {int(mask.sum())} plate pixels); reference "
+              f"{2 * half} spp point-sampled ({reference_seconds:.0f} s), its own relative RMSE ≈ {floor:.3f}")
+    return rows, header
 
+
+def print_table(view, rows, header):
     point_rows = [r for r in rows if not r["filtered"]]
     a = float(np.mean([r["error"] * np.sqrt(r["spp"]) for r in point_rows]))  # error ≈ a/√spp
     point_per_sample = {r["spp"]: r["per_sample"] for r in point_rows}
-
-    print(f"variant {variant}; film {width} × {height} ({int(mask.sum())} plate pixels); reference "
-          f"{2 * half} spp point-sampled ({reference_seconds:.0f} s), its own relative RMSE ≈ {floor:.3f}; "
-          f"point error ≈ {a:.2f}/√spp")
+    print(f"**{view} view**: {header}; point error ≈ {a:.2f}/√spp")
     print()
     print("| spp | filter | relative RMSE | mean vs reference | time / sample (µs) | × point's | "
           "point spp for this error | equal-error speed-up |")
@@ -118,6 +119,35 @@ def main() -> None:
         speed_up = equal * point_per_sample[r["spp"]] / (r["spp"] * r["per_sample"])
         print(f"| {r['spp']} | {'on' if r['filtered'] else 'off'} | {r['error']:.3f} | {100 * r['bias']:+.1f} % | "
               f"{1e6 * r['per_sample']:.2f} | {ratio:.2f} | {equal:.0f} | {speed_up:.1f}× |")
+    print()
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--size", type=int, nargs=2, default=(240, 150), metavar=("WIDTH", "HEIGHT"))
+    parser.add_argument("--far-size", type=int, nargs=2, default=None, metavar=("WIDTH", "HEIGHT"),
+                        help="also the far view: the same plate on this film (90 56: the plate ~60 px wide)")
+    parser.add_argument("--spp", type=int, nargs="+", default=[16, 64, 256])
+    parser.add_argument("--reference-spp", type=int, default=8192)
+    args = parser.parse_args()
+
+    from bench_schedule import scratched_plate
+    from scratch_iridescence.mitsuba_bridge.render.activation import activate
+
+    variant = activate("auto")
+    description = scratched_plate(args.size[0])
+    views = [("close", tuple(args.size))] + ([("far", tuple(args.far_size))] if args.far_size else [])
+    results = {view: measure(description, size, args.spp, args.reference_spp) for view, size in views}
+    print(f"variant {variant}")
+    print()
+    for view, (rows, header) in results.items():
+        print_table(view, rows, header)
+    if "far" in results:
+        print("| spp | filter | far view's time / sample ÷ close view's | far view's relative RMSE ÷ close view's |")
+        print("|---|---|---|---|")
+        for near, far in zip(results["close"][0], results["far"][0]):
+            print(f"| {near['spp']} | {'on' if near['filtered'] else 'off'} | "
+                  f"{far['per_sample'] / near['per_sample']:.2f} | {far['error'] / near['error']:.2f} |")
 
 
 if __name__ == "__main__":

@@ -26,7 +26,7 @@ import mitsuba as mi
 from .. import sampling
 from ..heightfield.overlap import crossing_correction
 from ..heightfield.triples import add_triples
-from ..lookup import for_each_crossing, for_each_segment, replay_pieces, segment_at
+from ..lookup import for_each_crossing, for_each_segment, jacobian, replay_pieces, segment_at
 from ..maths.complexmath import Cx
 from ..maths.segment import SegmentGeometry, amplitude
 from ..model import FIND, REPLAY_PIECES, WINDOW_RADIUS_SIGMAS, Model, reservoir_step
@@ -36,12 +36,12 @@ from .along import _pick
 from .field import CROSSING_PAIRS_BELOW, pair_term, piece_terms
 from .pairs import PARALLEL_BELOW
 from .footprint import Footprint, footprint_of, projected
+from .reach import capped_footprint
 
 __all__ = ["FilteredModel", "POINT_BELOW_SIGMAS", "REACH_STDS", "RECENT_PIECES", "filtered_window_energy"]
 
-#: A sample's footprint radius is capped at this many σ (no level of detail yet: the cap bounds the pieces an
-#: evaluation visits; a smaller footprint only filters less, docs/model.md §11.8).  The demo plate at 240 × 150
-#: and 16 spp (bench_convergence) has radii of about 18σ, under it.
+#: A sample's footprint radius is capped at this many σ, whatever the pieces' density (where they are dense the
+#: reach is capped further, :mod:`.reach`; a smaller footprint only filters less, docs/model.md §11.8).
 MAX_RADIUS_SIGMAS = 32.0
 #: Footprints whose larger standard deviation is below this many σ take the point model.
 POINT_BELOW_SIGMAS = 0.05
@@ -77,12 +77,28 @@ class FilteredModel(Model):
     line_continuation: object = None
     #: Gauss–Hermite nodes across a groove (:mod:`.single`): 2 where every groove is at most 1.2σ wide
     across_nodes: int = 3
+    #: mi.Float: the grid's per-cell piece densities as summed-area tables (:func:`..tables.density.density_table`);
+    #: None: footprints are not capped by density (only by ``MAX_RADIUS_SIGMAS``)
+    piece_density: object = None
 
     # ------------------------------------------------------------ helpers
     def footprint(self, si) -> Footprint:
-        """The footprint of the sample at ``si`` (µm², local frame)."""
-        return footprint_of(si, self.footprint_angle, self.footprint_width, self.micrometres_per_unit,
-                            MAX_RADIUS_SIGMAS * self.sigma)
+        """The footprint of the sample at ``si`` (µm², local frame), shrunk where its reach is expected to hold more
+        than :data:`.reach.MAX_EXPECTED_PIECES` pieces (docs/model.md §11.8)."""
+        footprint = footprint_of(si, self.footprint_angle, self.footprint_width, self.micrometres_per_unit,
+                                 MAX_RADIUS_SIGMAS * self.sigma)
+        if self.piece_density is None:
+            return footprint
+        jac = jacobian(si, self.micrometres_per_unit)
+        footprint = capped_footprint(footprint, self.grid, self.piece_density, jac, self.sigma, REACH_STDS)
+        reach_family = self._footprint_family(jac, footprint, self._reach(footprint), mi.Bool(True))
+        if reach_family is None:
+            return footprint
+        # inside a periodic family whose closed form the footprint's reach loses (an edge or a kink within it, or
+        # more than 2 × 2 cells), the point window's closed form instead of every track piece by piece
+        window_family = find_family(self.grid, jac, self.sigma, mi.Bool(True))
+        point = window_family.eligible & ~reach_family.eligible
+        return Footprint(*(dr.select(point, 0.0, part) for part in footprint))
 
     def _is_point(self, footprint: Footprint):
         return footprint.largest_variance < (POINT_BELOW_SIGMAS * self.sigma) ** 2
