@@ -43,7 +43,8 @@ import numpy as np
 
 from ..device.memory import NotEnoughMemory, check_memory, format_bytes
 from ..files.regular import NotARegularFile, open_regular
-from .schedule import MAX_CHUNKS, Chunk, Node, PairwiseSum, ScheduleError, root, sample_schedule, tree_nodes, tree_sum
+from .schedule import (MAX_CHUNKS, Chunk, Node, PairwiseSum, ScheduleError, root, sample_schedule, schedule_sizes,
+                       tree_nodes, tree_sum)
 
 __all__ = ["PART_FORMAT", "RenderIdentity", "PartError", "scene_fingerprint", "schedule_digest", "software",
            "recording_tables", "tables_fingerprint", "write_part", "read_header", "read_part", "merge_parts"]
@@ -340,10 +341,13 @@ def _schedule(path: Path, identity: RenderIdentity) -> list[Chunk]:
     pixels = identity.width * identity.height
     for gpu in (False, True):
         try:
+            # (the sizes first: a header naming 2³¹ spp of another chunk count costs no list of 10⁵ chunks)
+            if len(schedule_sizes(identity.spp, pixels, gpu=gpu)) != identity.chunk_count:
+                continue
             chunks = sample_schedule(identity.spp, pixels, identity.seed, gpu=gpu)
         except ScheduleError as error:
             raise PartError(f"{path}: its header names an impossible render ({error})") from None
-        if len(chunks) == identity.chunk_count and schedule_digest(chunks) == identity.schedule:
+        if schedule_digest(chunks) == identity.schedule:
             return chunks
     raise PartError(f"{path}: header fields chunk_count {identity.chunk_count} and schedule {identity.schedule!r} "
                     f"are not the schedule of {identity.spp} spp over {identity.width} x {identity.height} pixels "

@@ -63,7 +63,7 @@ from typing import Callable
 import numpy as np
 
 __all__ = ["MAX_SAMPLES_PER_PASS", "MAX_CHUNKS", "SMALL_CHUNK_SPP", "GPU_CHUNK_SPP", "ScheduleError", "Chunk", "Node",
-           "SAMPLER_SIZES", "sample_schedule", "chunk_spp", "stratified_size", "pass_seed", "part_range", "tree_nodes",
+           "SAMPLER_SIZES", "sample_schedule", "schedule_sizes", "chunk_spp", "stratified_size", "pass_seed", "part_range", "tree_nodes",
            "tree_sum", "root", "PairwiseSum"]
 
 #: Samples per ``mi.render`` call (a chunk): 720 × 450 takes 16 spp (one pixel per 16-lane SIMD packet),
@@ -174,6 +174,13 @@ def sample_schedule(spp: int, pixels: int, seed: int = 0, *, gpu: bool = False) 
     >>> [c.spp for c in sample_schedule(100, 32 * 24, gpu=True)]
     [16, 16, 16, 16, 16, 16, 4]
     """
+    sizes = schedule_sizes(spp, pixels, gpu=gpu)
+    return [Chunk(index, size, pass_seed(seed, index)) for index, size in enumerate(sizes)]
+
+
+def schedule_sizes(spp: int, pixels: int, *, gpu: bool = False) -> list[int]:
+    """The samples per pixel of :func:`sample_schedule`'s chunks, in order, without their seeds: a plain list
+    of ints (a check of a part's header compares its length before building up to a million chunks)."""
     spp, pixels = int(spp), int(pixels)
     if spp < 1:
         raise ScheduleError(f"spp must be at least 1, got {spp}")
@@ -193,7 +200,7 @@ def sample_schedule(spp: int, pixels: int, seed: int = 0, *, gpu: bool = False) 
         sizes += [SMALL_CHUNK_SPP] * (remainder // SMALL_CHUNK_SPP)
         remainder %= SMALL_CHUNK_SPP
     sizes += [1 << bit for bit in reversed(range(remainder.bit_length())) if remainder >> bit & 1]
-    return [Chunk(index, size, pass_seed(seed, index)) for index, size in enumerate(sizes)]
+    return sizes
 
 
 def part_range(part: int, parts: int, chunk_count: int) -> range:
