@@ -82,10 +82,10 @@ class SCRATCH_PG_render(bpy.types.PropertyGroup):
         # Explicit numbers: files store the number, so a new item takes a new one whatever its place
         items=[("multijitter", "Multi-Jittered", "Correlated multi-jittered samples (Mitsuba's multijitter): "
                                                  "stratified within each chunk of samples, less noise at equal "
-                                                 "samples", 0),
-               ("independent", "Independent", "Independent uniform random samples (Mitsuba's independent), as "
-                                              "renders before the stratified sampler: for validation", 1)],
-        default="multijitter", update=_tag_scene)
+                                                 "samples on surfaces. Experimental: some volumes render a few "
+                                                 "percent too bright with it", 0),
+               ("independent", "Independent", "Independent uniform random samples (Mitsuba's independent)", 1)],
+        default="independent", update=_tag_scene)
     film_filter: EnumProperty(
         name="Pixel Filter", description="Reconstruction filter of the film",
         items=_FILTER_ITEMS, default="box", update=_tag_scene)

@@ -1,5 +1,5 @@
-"""The Sampler render setting (docs/rendering.md, The sampler): multi-jittered by default, independent for
-validation, gathered into the render settings and written by File > Export > Mitsuba Scene into scene.xml."""
+"""The Sampler render setting (docs/rendering.md, The sampler): independent by default, multi-jittered by choice,
+gathered into the render settings and written by File > Export > Mitsuba Scene into scene.xml."""
 import pytest
 
 bpy = pytest.importorskip("bpy")
@@ -7,11 +7,11 @@ from render_scenes import add_camera, add_plane, setup_render  # noqa: E402
 from scratch_iridescence.addon.render.gather import gather_settings  # noqa: E402
 
 
-def test_the_sampler_is_multijitter_by_default_gathered_and_exported(empty_scene, tmp_path):
+def test_the_sampler_is_independent_by_default_gathered_and_exported(empty_scene, tmp_path):
     settings = empty_scene.scratch_iridescence
-    assert settings.sampler == "multijitter" and gather_settings(empty_scene).sampler == "multijitter"
-    settings.sampler = "independent"
-    assert gather_settings(empty_scene).sampler == "independent"
+    assert settings.sampler == "independent" and gather_settings(empty_scene).sampler == "independent"
+    settings.sampler = "multijitter"
+    assert gather_settings(empty_scene).sampler == "multijitter"
     setup_render(empty_scene, 8, 6, samples=4)
     add_camera(empty_scene, location=(0, 0, 3), lens=40)
     add_plane(empty_scene, size=2)

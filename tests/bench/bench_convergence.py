@@ -62,7 +62,7 @@ def relative_rmse(image, reference, mask) -> float:
     return float(np.sqrt(np.mean(difference ** 2)) / np.mean(reference[mask]))
 
 
-def measure(description, size, spp_list, reference_spp):
+def measure(description, size, spp_list, reference_spp, sampler="independent"):
     """``(rows, header)``: every spp of ``spp_list`` with the filter off and on against a point-sampled reference
     of ``reference_spp``, the plate on a ``size`` film (module docstring)."""
     from scratch_iridescence.mitsuba_bridge import builder
@@ -75,7 +75,7 @@ def measure(description, size, spp_list, reference_spp):
     def rgb(image):
         return np.asarray(image, dtype=np.float64)[..., :3]
 
-    scenes = {filtered: builder.load_scene(description, S.RenderSettings(footprint_filter=filtered))
+    scenes = {filtered: builder.load_scene(description, S.RenderSettings(footprint_filter=filtered, sampler=sampler))
               for filtered in (False, True)}
     mask = plate_mask(scenes[False])
     for scene in scenes.values():  # compile every kernel once
@@ -123,12 +123,16 @@ def print_table(view, rows, header):
 
 
 def main() -> None:
+    from scratch_iridescence.mitsuba_bridge import scene as S
+
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--size", type=int, nargs=2, default=(240, 150), metavar=("WIDTH", "HEIGHT"))
     parser.add_argument("--far-size", type=int, nargs=2, default=None, metavar=("WIDTH", "HEIGHT"),
                         help="also the far view: the same plate on this film (90 56: the plate ~60 px wide)")
     parser.add_argument("--spp", type=int, nargs="+", default=[16, 64, 256])
     parser.add_argument("--reference-spp", type=int, default=8192)
+    parser.add_argument("--sampler", choices=S.SAMPLERS, default=S.RenderSettings().sampler,
+                        help="Mitsuba's sampler of every render, the reference's included (default: the renderer's)")
     args = parser.parse_args()
 
     from bench_schedule import scratched_plate
@@ -137,7 +141,7 @@ def main() -> None:
     variant = activate("auto")
     description = scratched_plate(args.size[0])
     views = [("close", tuple(args.size))] + ([("far", tuple(args.far_size))] if args.far_size else [])
-    results = {view: measure(description, size, args.spp, args.reference_spp) for view, size in views}
+    results = {view: measure(description, size, args.spp, args.reference_spp, args.sampler) for view, size in views}
     print(f"variant {variant}")
     print()
     for view, (rows, header) in results.items():

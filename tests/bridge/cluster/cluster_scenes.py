@@ -25,7 +25,7 @@ def worker_sys_path():
         sys.path[:] = saved
 
 
-def export_scene(folder, *, film=(32, 24), light=(1.0, 1.0, 1.0), sampler="multijitter"):
+def export_scene(folder, *, film=(32, 24), light=(1.0, 1.0, 1.0), sampler="independent"):
     """A lit grey floor exported to ``folder`` (different ``light`` values give different scenes), rendered with
     Mitsuba's ``sampler``."""
     from bridge_scenes import simple_scene

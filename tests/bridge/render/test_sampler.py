@@ -1,4 +1,4 @@
-"""The render's sampler: stratified (``multijitter``) by default, ``independent`` for validation; every chunk of the
+"""The render's sampler: ``independent`` by default, the stratified ``multijitter`` by choice; every chunk of the
 schedule renders exactly its samples, the setting travels through scene.xml, and the stratified one is less
 noisy seed to seed (docs/rendering.md, The sampler)."""
 import numpy as np
@@ -33,7 +33,7 @@ def test01_every_schedule_size_is_one_each_sampler_takes_as_it_is(variant):
 
 def test02_the_sampler_is_written_into_scene_xml_and_read_back(variant, tmp_path):
     description = simple_scene(world=S.ConstantWorld((0.5, 0.5, 0.5)))
-    assert S.RenderSettings().sampler == "multijitter"
+    assert S.RenderSettings().sampler == "independent"
     for name, mitsuba_class in (("multijitter", "MultijitterSampler"), ("independent", "IndependentSampler")):
         scene_file = export.export_folder(description, S.RenderSettings(spp=16, seed=5, sampler=name),
                                           tmp_path / name)
@@ -51,7 +51,7 @@ def test03_a_sampler_that_would_round_a_chunk_is_refused_with_one_line(variant, 
     by samples it did not render, so the command line refuses it before rendering."""
     scene_file = export.export_folder(simple_scene(world=S.ConstantWorld((0.5, 0.5, 0.5))), S.RenderSettings(spp=4),
                                       tmp_path / "scene")
-    scene_file.write_text(scene_file.read_text().replace('type="multijitter"', 'type="ldsampler"'))
+    scene_file.write_text(scene_file.read_text().replace('type="independent"', 'type="ldsampler"'))
     status = main(["render", str(tmp_path / "scene"), "-o", str(tmp_path / "out.exr"), "--spp", "5", "-q",
                    "--variant", "llvm_ad_spectral"])
     err = capsys.readouterr().err.strip()
