@@ -127,7 +127,9 @@ def test03_ctrl_c_cancels_the_render_on_the_cluster(scheduler, workers, tmp_path
     count = len(sample_schedule(16384, 128 * 96))
     process = subprocess.Popen([sys.executable, "-m", "scratch_iridescence.mitsuba_bridge", "render", str(folder),
                                 "-o", str(tmp_path / "out.exr"), "--cluster", scheduler[0], "--variant", VARIANT,
-                                "--spp", "16384"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                                "--spp", "16384"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                               # (a test run started in the background inherits SIGINT ignored: Ctrl-C would be lost)
+                               preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     for line in process.stdout:
         if "tasks on 2 workers" in line:
             break
