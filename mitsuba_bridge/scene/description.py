@@ -392,7 +392,8 @@ WORLD_TYPES = (ConstantWorld, EnvironmentWorld, SkyWorld)
 
 #: Mitsuba's samplers a render may use: ``independent`` (uniform random numbers: the default) and ``multijitter``
 #: (correlated multi-jittered: stratified in 2D and in 1D within each chunk of the schedule; less noise on
-#: surfaces, but measured 3 % too bright in two of the volume scenes Cycles checks, not yet explained).
+#: surfaces, but measured 3 % too bright in two of the volume scenes Cycles checks: Mitsuba's multijitter at 4 spp
+#: per call, the small films' chunk size; not yet explained).
 #: docs/rendering.md, The sampler, says why these two, what the choice costs and why it is not the default.
 SAMPLERS = ("multijitter", "independent")
 
