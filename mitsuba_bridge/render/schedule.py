@@ -39,8 +39,8 @@ machine or spread over many (``--chunk K/N`` and ``merge`` on the command line).
   of one variant anyway.
 * **Sizes every sampler takes as they are.**  Mitsuba's stratified samplers round a
   render call's spp to the counts they can stratify, and a chunk must render exactly
-  the samples its weight says.  The renderer's samplers (``multijitter``, the default,
-  and ``independent``; docs/rendering.md, The sampler) both take 1, 2, 4, 8 and 16 and
+  the samples its weight says.  The renderer's samplers (``independent``, the default,
+  and ``multijitter``; docs/rendering.md, The sampler) both take 1, 2, 4, 8 and 16 and
   every even power of two (64, 256, ... 16 384), not 32, 128, 512, 2 048 or 8 192
   (``multijitter`` would make 32 spp 35): a full chunk of such a size takes half of it
   (:func:`stratified_size`).  Every size of a schedule is one of :data:`SAMPLER_SIZES`.
@@ -63,8 +63,8 @@ from typing import Callable
 import numpy as np
 
 __all__ = ["MAX_SAMPLES_PER_PASS", "MAX_CHUNKS", "SMALL_CHUNK_SPP", "GPU_CHUNK_SPP", "ScheduleError", "Chunk", "Node",
-           "SAMPLER_SIZES", "sample_schedule", "schedule_sizes", "chunk_spp", "stratified_size", "pass_seed", "part_range", "tree_nodes",
-           "tree_sum", "root", "PairwiseSum"]
+           "SAMPLER_SIZES", "sample_schedule", "schedule_sizes", "chunk_spp", "stratified_size", "pass_seed",
+           "part_range", "tree_nodes", "tree_sum", "root", "PairwiseSum"]
 
 #: Samples per ``mi.render`` call (a chunk): 720 × 450 takes 16 spp (one pixel per 16-lane SIMD packet),
 #: 1080p 4; Esc waits for the chunk in flight (docs/rendering.md, What a chunk's size costs).
