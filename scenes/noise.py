@@ -12,15 +12,17 @@ display-referred values the PNG shows (the scene's exposure, Blender's Standard
 view: sRGB encoding, clipped to [0, 1]), so that a lamp seen directly, thousands of
 times brighter than white, weighs as the white it is shown as.
 
-**The picture's noise** at its N spp comes from a pair at N/4 spp (half a picture's
-cost) scaled by 1/2: point samples of the independent sampler are independent, so
-each pixel's variance falls exactly as 1/spp.
+**The picture's noise** at its N spp comes from a pair at N/16 spp (an eighth of a
+picture's cost) scaled by 1/4: point samples of the independent sampler are
+independent, so each pixel's variance falls exactly as 1/spp.
 
 **The filtered search.**  A filtered render's noise falls more slowly than
 1/sqrt(spp), because each sample's footprint (its share of the pixel) shrinks as
 the samples grow.  The search probes at 1 spp, predicts the spp of equal noise
 by 1/sqrt(spp) from the last probe (with a 10 % margin), and renders a pair there,
-until a pair's noise is at most the picture's or N is reached.  The reported spp
+until a pair's noise is at most the picture's or N/8 spp is reached: a filtered
+sample costs several point samples (docs/rendering.md), so beyond N/8 the filter
+saves no time, and the limit keeps the column's cost near one picture's.  The reported spp
 is the first tried that reaches it (the least lies between the last one that did
 not and it); its time is the wall time of the second render of its pair, which
 reuses the kernels the first compiled, as any render after a user's first.  The ratio of the
@@ -39,6 +41,8 @@ __all__ = ["relative_noise", "display_referred", "next_probe", "noise_worker", "
 
 #: Filtered pairs rendered at most per picture (the probe at 1 spp included).
 MAX_PROBES = 5
+#: The point pair's spp and the filtered search's limit, as fractions of the picture's spp (module docstring).
+POINT_FRACTION, FILTERED_LIMIT_FRACTION = 1 / 16, 1 / 8
 #: Predicted spp are raised by this factor: noise falls more slowly than 1/sqrt(spp) when filtered.
 PREDICTION_MARGIN = 1.1
 
@@ -99,7 +103,7 @@ def noise_worker(blend: Path, bpy) -> dict:
 
     Returns ``{spp, render_s, noise, point_noise, point_spp, mean_ratio, probes, reached, total_s}``:
     ``spp`` the first tried spp whose filtered noise is at most the point-sampled picture's
-    (``reached`` False where even the picture's own spp did not), ``probes`` every filtered pair tried.
+    (``reached`` False where the search's limit, N/8, did not), ``probes`` every filtered pair tried.
     """
     started = time.perf_counter()
     bpy.ops.wm.open_mainfile(filepath=str(blend))
@@ -113,16 +117,17 @@ def noise_worker(blend: Path, bpy) -> dict:
     exposure = float(scene.view_settings.exposure)
     with tempfile.TemporaryDirectory(prefix="noise-") as temporary:
         folder = Path(temporary)
-        quarter = max(1, picture_spp // 4)
-        point = _pair(bpy, scene, folder, quarter, filtered=False, exposure=exposure)
-        target = point["noise"] * math.sqrt(quarter / picture_spp)
+        point_spp = max(1, round(picture_spp * POINT_FRACTION))
+        limit = max(1, round(picture_spp * FILTERED_LIMIT_FRACTION))
+        point = _pair(bpy, scene, folder, point_spp, filtered=False, exposure=exposure)
+        target = point["noise"] * math.sqrt(point_spp / picture_spp)
         probes, spp = [], 1
         while True:
             probe = _pair(bpy, scene, folder, spp, filtered=True, exposure=exposure)
             probes.append(probe)
-            if probe["noise"] <= target or spp >= picture_spp or len(probes) >= MAX_PROBES:
+            if probe["noise"] <= target or spp >= limit or len(probes) >= MAX_PROBES:
                 break
-            spp = next_probe(spp, probe["noise"], target, picture_spp)
+            spp = next_probe(spp, probe["noise"], target, limit)
     last = probes[-1]
     return {"spp": last["spp"], "render_s": last["render_s"], "noise": last["noise"], "point_noise": target,
             "point_spp": picture_spp, "reached": last["noise"] <= target,

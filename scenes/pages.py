@@ -374,9 +374,10 @@ def _benchmarks(figures, records: dict) -> str:
               "picture of this row, and that render's wall time (the second of a pair: kernels compiled; compare "
               "with *of it passes*). Noise = RMS deviation over the pixels relative to the mean, from two seeds; "
               "the point picture's "
-              "from a pair at ¼ of its spp; the filtered spp found by probing from 1 spp and predicting by "
-              "1/sqrt(spp) (the first spp tried that reaches the noise: the least lies below it). *mean ×* is the "
-              "filtered pair's mean over the point pair's (bias check). `scenes/noise.py`; part of `make paper` "
+              "from a pair at 1/16 of its spp; the filtered spp found by probing from 1 spp and predicting by "
+              "1/sqrt(spp) (the first spp tried that reaches the noise: the least lies below it), up to ⅛ of "
+              "the picture's spp (*not reached at*: beyond it a filtered sample's cost leaves no time saved). "
+              "*mean ×* is the filtered pair's mean over the point pair's (bias check). `scenes/noise.py`; part of `make paper` "
               + (f"(this column: {_minutes(column_s)} of measuring in all)." if measured else
                  "(not measured by the runs whose statistics these are: \"—\").")]
     lines += [
