@@ -377,7 +377,8 @@ def _benchmarks(figures, records: dict) -> str:
               "from a pair at 1/16 of its spp; the filtered spp found by probing from 1 spp and predicting by "
               "1/sqrt(spp) (the first spp tried that reaches the noise: the least lies below it), up to ⅛ of "
               "the picture's spp (*not reached at*: beyond it a filtered sample's cost leaves no time saved). "
-              "*mean ×* is the filtered pair's mean over the point pair's (bias check). `scenes/noise.py`; part of `make paper` "
+              "*mean ×* is the filtered pair's mean over the point pair's (bias check). `scenes/noise.py`; part of "
+              "`make paper` "
               + (f"(this column: {_minutes(column_s)} of measuring in all)." if measured else
                  "(not measured by the runs whose statistics these are: \"—\").")]
     lines += [
