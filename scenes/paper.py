@@ -249,7 +249,7 @@ def measure_filtered_noise(record: dict, output: Path) -> dict:
 
 
 def filtered_noise_only(output: Path, only=None) -> list[dict]:
-    """Measure the filtered column for the selected pictures already rendered into ``output``."""
+    """Measure the filtered column for the selected pictures already rendered into ``output`` that lack it."""
     from . import pages
 
     records = pages.load_records(output)
@@ -257,7 +257,8 @@ def filtered_noise_only(output: Path, only=None) -> list[dict]:
     for module, figure in figures(only):
         for render in figure.renders:
             record = records.get(f"{module.__name__.rsplit('.', 1)[-1]}-{render.name}")
-            if record is not None:
+            # pictures re-rendered since their column was measured lost it with their old record
+            if record is not None and "filtered_same_noise" not in record:
                 print(f"{figure.label} {figure.title}, {render.name}: filtered noise", flush=True)
                 chosen.append(measure_filtered_noise(record, output))
     return chosen
@@ -316,7 +317,7 @@ def main(argv=None) -> int:
                         help="skip the filtered column (the spp at which the Footprint Filter matches each picture's "
                              "noise)")
     parser.add_argument("--filtered-noise-only", action="store_true",
-                        help="render no pictures: measure the filtered column of those already in --output")
+                        help="render no pictures: measure the filtered column of those in --output that lack it")
     parser.add_argument("--pages-only", action="store_true",
                         help="render nothing: rewrite the pages from the statistics already in --output")
     args = parser.parse_args(argv)
