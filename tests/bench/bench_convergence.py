@@ -159,7 +159,7 @@ def print_table(view, rows, header):
     print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         ratio = r["per_sample"] / point_per_sample[r["spp"]]
-        equal = (a / r["corrected"]) ** 2
+        equal = (a / max(r["corrected"], 1e-9)) ** 2  # a row within the reference's noise: "inf"
         speed_up = equal * point_per_sample[r["spp"]] / (r["spp"] * r["per_sample"])
         spread = "–" if np.isnan(r["spread"]) else f"{r['spread']:.3f}"
         bias = "–" if np.isnan(r["bias"]) else f"{r['bias']:+.3f}"
