@@ -94,7 +94,8 @@ def error_parts(images, reference, reference_variance, mask) -> dict:
     if len(stack) > 1:
         variance = float(np.mean(np.var(stack, axis=0, ddof=1)))
         bias_squared = float(np.mean((stack.mean(axis=0) - target) ** 2)) - variance / len(stack) - reference_variance
-        parts.update(spread=np.sqrt(variance) / scale, bias=np.copysign(np.sqrt(abs(bias_squared)), bias_squared) / scale)
+        parts.update(spread=np.sqrt(variance) / scale,
+                     bias=np.copysign(np.sqrt(abs(bias_squared)), bias_squared) / scale)
     per_pixel = np.mean((stack - target) ** 2, axis=(0, 2))
     brightness = target.mean(axis=1)
     brightest = brightness >= np.quantile(brightness, 0.99)
@@ -138,7 +139,8 @@ def measure(description, size, spp_list, reference_spp, sampler="independent", s
             images = [rgb(render_image(scenes[filtered], spp, seed=spp + 1000 * k)) for k in range(seeds)]
             seconds = (time.perf_counter() - began) / seeds
             rows.append(dict(spp=spp, filtered=filtered, **error_parts(images, reference, reference_variance, mask),
-                             mean=float(np.mean([image[mask].mean() for image in images]) / reference[mask].mean() - 1.0),
+                             mean=float(np.mean([image[mask].mean() for image in images])
+                                        / reference[mask].mean() - 1.0),
                              per_sample=seconds / (width * height * spp)))
     columns = np.nonzero(mask.any(axis=0))[0]
     plate_width = int(columns.max() - columns.min() + 1) if columns.size else 0
@@ -159,13 +161,13 @@ def print_table(view, rows, header):
     print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         ratio = r["per_sample"] / point_per_sample[r["spp"]]
-        equal = (a / max(r["corrected"], 1e-9)) ** 2  # a row within the reference's noise: "inf"
+        equal = (a / max(r["corrected"], 1e-9)) ** 2  # a row within the reference's own noise: a huge figure
         speed_up = equal * point_per_sample[r["spp"]] / (r["spp"] * r["per_sample"])
         spread = "–" if np.isnan(r["spread"]) else f"{r['spread']:.3f}"
         bias = "–" if np.isnan(r["bias"]) else f"{r['bias']:+.3f}"
-        print(f"| {r['spp']} | {'on' if r['filtered'] else 'off'} | {r['error']:.3f} | {r['corrected']:.3f} | {spread} | "
-              f"{bias} | {r['bright_share']:.2f} | {100 * r['mean']:+.1f} % | {1e6 * r['per_sample']:.2f} | {ratio:.2f} | "
-              f"{equal:.0f} | {speed_up:.1f}× |")
+        print(f"| {r['spp']} | {'on' if r['filtered'] else 'off'} | {r['error']:.3f} | {r['corrected']:.3f} | "
+              f"{spread} | {bias} | {r['bright_share']:.2f} | {100 * r['mean']:+.1f} % | {1e6 * r['per_sample']:.2f} | "
+              f"{ratio:.2f} | {equal:.0f} | {speed_up:.1f}× |")
     print()
 
 
@@ -181,7 +183,7 @@ def main() -> None:
     parser.add_argument("--sampler", choices=S.SAMPLERS, default=S.RenderSettings().sampler,
                         help="Mitsuba's sampler of every render, the reference's included (default: the renderer's)")
     parser.add_argument("--seeds", type=int, default=1,
-                        help="renders per row, distinct seeds: ≥ 2 splits the error into seed-to-seed spread and bias")
+                        help="renders per row, distinct seeds: 2 or more split the error into spread and bias")
     args = parser.parse_args()
 
     from bench_schedule import scratched_plate
