@@ -54,9 +54,9 @@ FIGURE = Figure(
            " finds only by chance at these samples per pixel (caustic noise, not scratches). With depth variation"
            " the halo looks the same, a little sparser.",
     renders=(Render("door", "370 000 scratches, generated and painted, around a lamp's reflection", {},
-                    resolution=(540, 720), samples=192, paper_minutes=32),
+                    resolution=(540, 720), samples=48, paper_minutes=32),
              Render("variation", "the same scratches with depth variation D[1.1, 0.04] (Fig. 6 top left)",
-                    {"variation": True}, resolution=(540, 720), samples=192, paper_minutes=33)),
+                    {"variation": True}, resolution=(540, 720), samples=48, paper_minutes=33)),
 )
 
 

@@ -54,10 +54,10 @@ FIGURE = Figure(
            "bowl: a close-up of the bowl, where the glints of the circling strokes draw a swirl of coloured arcs "
            "around the lamp's reflection in the bowl's bottom — the clearest picture of the three.",
     renders=(Render("lamp", "the spoon under a lamp: its reflection on the handle, coloured speckle over the bowl",
-                    {"view": "lamp"}, resolution=(720, 480), samples=128, paper_minutes=69),
+                    {"view": "lamp"}, resolution=(720, 480), samples=32, paper_minutes=69),
              Render("handle", "low light along the handle", {"view": "handle"}, resolution=(720, 480),
-                    samples=128, paper_minutes=83),
-             Render("bowl", "close-up of the bowl", {"view": "bowl"}, resolution=(600, 480), samples=128,
+                    samples=32, paper_minutes=83),
+             Render("bowl", "close-up of the bowl", {"view": "bowl"}, resolution=(600, 480), samples=32,
                     paper_minutes=368)),
 )
 

@@ -34,7 +34,7 @@ FIGURE = Figure(
            "near the disc's far rim; the scratches perpendicular to the half vector light up along arcs around "
            "it across the whole disc.",
     renders=(Render("lamp", "3 700 random scratches around a lamp's reflection", {},
-                    resolution=(640, 540), samples=512, paper_minutes=25),),
+                    resolution=(640, 540), samples=128, paper_minutes=25),),
 )
 
 

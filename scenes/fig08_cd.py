@@ -66,9 +66,9 @@ FIGURE = Figure(
            "and blue towards the rim.",
     renders=(
         Render("b", "(b) the strip light beyond the disc: rainbow arcs of the first order", {"view": "strip"},
-               resolution=(720, 540), samples=128, paper_minutes=200),
+               resolution=(720, 540), samples=32, paper_minutes=200),
         Render("d", "(d) from above, a round lamp beside the lens: its reflection, and a rainbow spoke opposite",
-               {"view": "above"}, resolution=(600, 600), samples=128, paper_minutes=204),
+               {"view": "above"}, resolution=(600, 600), samples=32, paper_minutes=204),
     ),
 )
 

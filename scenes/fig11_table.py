@@ -53,15 +53,15 @@ FIGURE = Figure(
            "better).",
     renders=(
         Render("diner-variation", "Fig. 6 (top middle): Fig. 1's view, the scratches with D[1.1, 0.04]",
-               {"view": "diner", "variation": True}, resolution=(960, 600), samples=256, paper_minutes=120),
+               {"view": "diner", "variation": True}, resolution=(960, 600), samples=64, paper_minutes=120),
         Render("close", "Fig. 11 (a): close and low, constant depth", {"view": "close", "variation": False},
-               resolution=(960, 600), samples=256, paper_minutes=266),
+               resolution=(960, 600), samples=64, paper_minutes=266),
         Render("close-variation", "Fig. 11 (b): close and low, D[1.1, 0.04]", {"view": "close", "variation": True},
-               resolution=(960, 600), samples=256, paper_minutes=284),
+               resolution=(960, 600), samples=64, paper_minutes=284),
         Render("above", "Fig. 11 (c): from above, constant depth", {"view": "above", "variation": False},
-               resolution=(800, 600), samples=256, paper_minutes=167),
+               resolution=(800, 600), samples=64, paper_minutes=167),
         Render("above-variation", "Fig. 11 (d): from above, D[1.1, 0.04]", {"view": "above", "variation": True},
-               resolution=(800, 600), samples=256, paper_minutes=168),
+               resolution=(800, 600), samples=64, paper_minutes=168),
     ),
 )
 

@@ -203,7 +203,11 @@ def _gallery(figures, records: dict, validation: dict | None) -> str:
     rows = benchmark_rows(figures, records)
     render_total = sum(r["total_s"] for r in rows)
     # The pictures may come from several runs (--only): add up what each took, not this run's wall time.
-    total_s = render_total + (validation or {}).get("seconds", 0.0)
+    # the benchmark table's filtered column (scenes/noise.py) is measured beside the pictures
+    noise_s = sum(r["filtered"].get("total_s", 0.0) for r in rows if r["filtered"])
+    total_s = render_total + (validation or {}).get("seconds", 0.0) + noise_s
+    noise_part = (f", {_minutes(noise_s)} measuring the Footprint Filter's column of [benchmarks.md](benchmarks.md)"
+                  if noise_s else "")
     scaled = [r for r in rows if abs(r["full_settings_s"] - r["total_s"]) > 1e-9]
     scaled_note = "" if not scaled else (
         f" {len(scaled)} of the pictures were rendered below make paper's settings (their tables say which); "
@@ -220,8 +224,10 @@ def _gallery(figures, records: dict, validation: dict | None) -> str:
              "scene shows the same effect. Our renders are far cheaper than the paper's (4 MP × 16 384 spp on 72 "
              "cores): "
              f"{_machine()}, {_minutes(total_s)} for this whole page ({_minutes(render_total)} of it building and "
-             f"rendering the pictures), so resolution and samples are a small fraction of the paper's and the "
-             f"pictures keep some Monte Carlo noise.{scaled_note} Pictures are display-referred PNGs "
+             f"rendering the pictures{noise_part}), so resolution and samples are a small fraction of the "
+             f"paper's and the pictures keep some Monte Carlo noise: each picture's samples per pixel are set so that "
+             "`make paper` fits in about an hour on these cores, 12–64 spp for the scenes of 10⁵–10⁶ scratches "
+             f"(the paper's 16 384 on 72 cores is out of reach).{scaled_note} Pictures are display-referred PNGs "
              "(Blender's Standard view with each scene's exposure: AgX would wash the diffraction colours out); "
              "the linear EXRs are in `out/paper/`.", "",
              "| figure | scratches | pictures | time here | paper |", "|---|---|---|---|---|"]
@@ -284,7 +290,10 @@ def _filtered(measured: dict | None) -> str:
     """The footprint-filtered BSDF's spp for this picture's noise and its render time, or "—" (not measured)."""
     if not measured:
         return "—"
-    return f"{measured['spp']} spp ({_minutes(measured['render_s'])})"
+    if not measured.get("reached", True):
+        return f"not reached at {measured['spp']} spp (noise {measured['noise']:.3g} > {measured['point_noise']:.3g})"
+    return (f"{measured['spp']} spp ({_minutes(measured['render_s'])}; noise {measured['noise']:.3g} ≤ "
+            f"{measured['point_noise']:.3g}, mean ×{measured['mean_ratio']:.3f})")
 
 
 def _reference_lines(rows: list[dict]) -> list[str]:
@@ -359,11 +368,22 @@ def _benchmarks(figures, records: dict) -> str:
         lines.append("* **Traced passes**: " + "; ".join(f"{r['label']}: {r['traced']}" for r in traced) + ". "
                      "These pictures re-traced the integrator and the BSDF for every chunk instead of replaying "
                      "one recording ([rendering.md](rendering.md), Render): the same image, a slower render.")
-    lines += ["* **Filtered BSDF: spp for the same noise**: the samples per pixel at which the footprint-filtered "
-              "scratch BSDF (the closed-form expected BSDF over the pixel footprint, built in another branch) "
-              "reaches the noise of the point-sampled picture in this row, and its render time. Not measured "
-              "yet (\"—\"): a run that measures it stores `filtered_same_noise` = {spp, render_s} in the "
-              "picture's statistics (`out/paper/<picture>.json`) and the page shows it.",
+    measured = [r["filtered"] for r in rows if r["filtered"]]
+    column_s = sum(m.get("total_s", 0.0) for m in measured)
+    lines += ["* **Filtered BSDF: spp for the same noise**: the samples per pixel at which the picture rendered "
+              "with the Footprint Filter (the closed-form expected scratch BSDF over each sample's share of the "
+              "pixel, docs/model.md §11; off by default, docs/rendering.md) is as noisy as the point-sampled "
+              "picture of this row, and that render's wall time (the second of a pair: kernels compiled; compare "
+              "with *of it passes*). Noise = RMS deviation over the pixels relative to the mean, from two seeds; "
+              "the point picture's "
+              "from a pair at 1/16 of its spp; the filtered spp found by probing from 1 spp and predicting by "
+              "1/sqrt(spp) (the first spp tried that reaches the noise: the least lies below it), up to ⅛ of "
+              "the picture's spp (*not reached at*: beyond it a filtered sample's cost leaves no time saved). "
+              "*mean ×* is the filtered pair's mean over the point pair's (bias check). `scenes/noise.py`; part of "
+              "`make paper` "
+              + (f"(this column: {_minutes(column_s)} of measuring in all)." if measured else
+                 "(not measured by the runs whose statistics these are: \"—\").")]
+    lines += [
               "* **Peak memory** is the render process's maximum resident set (`ru_maxrss`): Blender (bpy), "
               "Mitsuba and Dr.Jit themselves take about 400 MB of it, the rest is the scene, the scratch tables "
               "and the image.",

@@ -14,7 +14,12 @@ compiled kernels never flatter the next:
    from the disk cache (``mitsuba_bridge/bsdf/tables/disk_cache.py``), as any render
    after the first of a set does.
 
-Before the first picture and after the last, a third worker renders Mitsuba's own Cornell box
+Then a third, ``noise``, opens the saved scene once more and finds the samples per pixel at which
+the picture rendered with the Footprint Filter is as noisy as the point-sampled one (:mod:`.noise`):
+the benchmark table's last column.  ``--no-filtered-noise`` skips it; ``--filtered-noise-only``
+measures it for the pictures already in ``--output``.
+
+Before the first picture and after the last, another worker renders Mitsuba's own Cornell box
 (``reference``): the machine reference that the benchmark table divides its rows by.
 
 Afterwards the numerical validation (:mod:`...mitsuba_bridge.validation`)
@@ -23,6 +28,7 @@ draws its figure, and :mod:`.pages` writes ``docs/gallery.md``,
 
     .venv/bin/python -m scratch_iridescence.scenes.paper                 # what `make paper` runs
     .venv/bin/python -m scratch_iridescence.scenes.paper --only fig06_cd --scale 0.25 --no-docs
+    .venv/bin/python -m scratch_iridescence.scenes.paper --filtered-noise-only --only fig07_plate
 """
 from __future__ import annotations
 
@@ -230,7 +236,35 @@ def measure_reference() -> float:
     return _run_worker(["reference"], "reference")["samples_per_core_s"]
 
 
-def run_all(output: Path, only=None, scale: float = 1.0, samples_scale: float = 1.0) -> list[dict]:
+def measure_filtered_noise(record: dict, output: Path) -> dict:
+    """The filtered column of one rendered picture (:mod:`.noise`, in a fresh process), stored in its record."""
+    began = time.perf_counter()
+    measured = _run_worker(["noise", record["blend"]], f"{record['name']} (filtered noise)")
+    measured.pop("passes_s", None)  # the worker's last render's progress line, not the picture's
+    record["filtered_same_noise"] = measured
+    (output / f"{record['name']}.json").write_text(json.dumps(record, indent=1))
+    print(f"  filtered: {measured['spp']} spp for the noise of {measured['point_spp']} "
+          f"({'reached' if measured['reached'] else 'NOT reached'}; {time.perf_counter() - began:.0f} s)", flush=True)
+    return record
+
+
+def filtered_noise_only(output: Path, only=None) -> list[dict]:
+    """Measure the filtered column for the selected pictures already rendered into ``output``."""
+    from . import pages
+
+    records = pages.load_records(output)
+    chosen = []
+    for module, figure in figures(only):
+        for render in figure.renders:
+            record = records.get(f"{module.__name__.rsplit('.', 1)[-1]}-{render.name}")
+            if record is not None:
+                print(f"{figure.label} {figure.title}, {render.name}: filtered noise", flush=True)
+                chosen.append(measure_filtered_noise(record, output))
+    return chosen
+
+
+def run_all(output: Path, only=None, scale: float = 1.0, samples_scale: float = 1.0,
+            filtered_noise: bool = True) -> list[dict]:
     """Build and render every selected picture; returns one statistics record per picture."""
     records = []
     for module, figure in figures(only):
@@ -250,6 +284,8 @@ def run_all(output: Path, only=None, scale: float = 1.0, samples_scale: float = 
             (output / f"{name}.json").write_text(json.dumps(record, indent=1))
             print(f"  done in {record['total_s']:.0f} s (render {record['render_s']:.0f} s, "
                   f"peak {record['peak_mb']:.0f} MB)", flush=True)
+            if filtered_noise:
+                measure_filtered_noise(record, output)
             records.append(record)
     return records
 
@@ -266,6 +302,8 @@ def main(argv=None) -> int:
     render = sub.add_parser("render", help="(worker) render a saved scene")
     render.add_argument("blend", type=Path)
     render.add_argument("--output", type=Path, required=True)
+    noise = sub.add_parser("noise", help="(worker) the filtered column of a saved, rendered scene")
+    noise.add_argument("blend", type=Path)
     sub.add_parser("reference", help="(worker) time the machine reference render")
     parser.add_argument("--output", type=Path, default=Path("out/paper"), help="renders and statistics")
     parser.add_argument("--docs", type=Path, default=Path("docs"), help="where gallery.md and benchmarks.md go")
@@ -274,6 +312,11 @@ def main(argv=None) -> int:
     parser.add_argument("--samples-scale", type=float, default=1.0, help="samples-per-pixel factor")
     parser.add_argument("--no-docs", action="store_true", help="render only; leave docs/ alone")
     parser.add_argument("--no-validation", action="store_true", help="skip the numerical validation figure")
+    parser.add_argument("--no-filtered-noise", action="store_true",
+                        help="skip the filtered column (the spp at which the Footprint Filter matches each picture's "
+                             "noise)")
+    parser.add_argument("--filtered-noise-only", action="store_true",
+                        help="render no pictures: measure the filtered column of those already in --output")
     parser.add_argument("--pages-only", action="store_true",
                         help="render nothing: rewrite the pages from the statistics already in --output")
     args = parser.parse_args(argv)
@@ -286,6 +329,11 @@ def main(argv=None) -> int:
         stats = render_worker(args.blend.resolve(), args.output.resolve())
         print("RESULT " + json.dumps(stats), flush=True)
         return 0
+    if args.command == "noise":
+        from .noise import noise_worker
+
+        print("RESULT " + json.dumps(noise_worker(args.blend.resolve(), _start_blender())), flush=True)
+        return 0
     if args.command == "reference":
         print("RESULT " + json.dumps(reference_worker()), flush=True)
         return 0
@@ -294,12 +342,14 @@ def main(argv=None) -> int:
     output = args.output.resolve()
     output.mkdir(parents=True, exist_ok=True)
     records = []
-    if not args.pages_only:
+    if args.filtered_noise_only:
+        records = filtered_noise_only(output, args.only)
+    elif not args.pages_only:
         # Build times are shared by the pictures of this run only: an earlier run's code may have built slower.
         (output / BUILD_TIMES_FILE).unlink(missing_ok=True)
         # Before and after the pictures: their mean divides the rows, their difference shows the drift.
         before = measure_reference()
-        records = run_all(output, args.only, args.scale, args.samples_scale)
+        records = run_all(output, args.only, args.scale, args.samples_scale, not args.no_filtered_noise)
         after = measure_reference()
         reference = {"before": before, "after": after, "samples_per_core_s": 0.5 * (before + after)}
         (output / "reference.json").write_text(json.dumps(reference, indent=1))
@@ -309,7 +359,7 @@ def main(argv=None) -> int:
             record["reference"] = reference
             (output / f"{record['name']}.json").write_text(json.dumps(record, indent=1))
     validation = None
-    if not (args.no_validation or args.pages_only):
+    if not (args.no_validation or args.pages_only or args.filtered_noise_only):
         from ..mitsuba_bridge.validation import fig15 as numerics
 
         print("Numerical validation (supplement Fig. 15)", flush=True)

@@ -221,6 +221,21 @@ def test10_paper_runner_builds_renders_and_writes_the_pages(tmp_path):
     assert f"| {pages.rate(row['passes_per_core_s'])} | {relative:.3f} |" in benchmarks
     assert f"{reference['before']:.3g} and {reference['after']:.3g} samples/core-s" in benchmarks
     assert record["reference"] == reference
+    # The filtered column (scenes/noise.py): the first filtered spp tried (from 1, increasing) whose noise,
+    # measured from two seeds, is at most the point picture's (a pair at 1/16 of its spp, scaled by
+    # 1/sqrt(spp)), up to 1/8 of its spp.
+    for name, record in records.items():
+        measured = record["filtered_same_noise"]
+        tried = [probe["spp"] for probe in measured["probes"]]
+        assert tried[0] == 1 and tried == sorted(set(tried)) and tried[-1] == measured["spp"] == 1
+        assert measured["point_pair"]["spp"] == 1 and measured["point_noise"] == pytest.approx(
+            measured["point_pair"]["noise"] * np.sqrt(1 / 5))
+        assert measured["reached"] == (measured["noise"] <= measured["point_noise"])
+        if measured["reached"]:
+            assert all(probe["noise"] > measured["point_noise"] for probe in measured["probes"][:-1])
+        assert measured["render_s"] > 0 and measured["noise"] > 0
+    assert f"{records['fig09_grating-coherent']['filtered_same_noise']['spp']} spp (" in benchmarks or \
+        "not reached at" in benchmarks
     # A later `--only` run measures its own reference; it divides only the pictures that run rendered.
     earlier = {"before": 1.0e6, "after": 1.2e6, "samples_per_core_s": 1.1e6}
     records["fig09_grating-incoherent"]["reference"] = earlier
