@@ -8,16 +8,22 @@ one point: today's renders) and on. Each image is compared over the plate's pixe
 that hit it) with a point-sampled reference of ``--reference-spp``:
 
 * **relative RMSE** = √(mean (image − reference)²) / mean(reference), RGB, plate pixels;
+* **corrected** = √(RMSE² − the reference's own variance) / mean(reference): the error against what the
+  reference converges to. The reference is itself noisy: it is rendered as two halves of different seeds,
+  whose difference has four times the whole reference's variance; an independent image's mean squared
+  error is its own plus the reference's, so subtracting the latter leaves the image's (variance + bias²);
+* with ``--seeds K`` (K ≥ 2 renders per row, distinct seeds) the corrected error splits into the
+  **seed-to-seed** spread √(mean per-pixel variance between the seeds) and the **bias** (signed root of
+  mean (mean of the K images − reference)² − spread²/K − the reference's variance: blur, caps and
+  approximations of the filter against the point model's expectation);
+* **brightest 1 %'s share**: the share of the squared error in the brightest 1 % of the reference's plate
+  pixels (the glints: a few pixels carry much of a glinting image's error);
 * **mean** = mean(image) / mean(reference) − 1 over the plate (a biased filter would show here);
 * **time per sample** = the render's wall time / (pixels × spp), after a render that compiled
   its kernels (a user's second render), and the filter's time over the point render's;
-* **equal-error speed-up**: the point render's error falls as a/√spp (a fitted from its rows); the
-  samples it would need for the filtered render's error, times its time per sample, over the
+* **equal-error speed-up**: the point render's corrected error falls as a/√spp (a fitted from its rows); the
+  samples it would need for the filtered render's corrected error, times its time per sample, over the
   filtered render's time.
-
-The reference is itself noisy: it is rendered as two halves of different seeds, and its own relative
-RMSE is estimated as RMSE(half₁ − half₂)/2 (the halves' difference has twice a half's variance, the
-whole half a half's); rows below about twice that floor measure the reference, not the image.
 
 **Far view** (``--far-size 90 56``): the same plate on a film that shows it ~60 px wide instead of 160, as
 the plate four times farther away would: a sample's footprint covers 7× the plate's length, holding
@@ -26,7 +32,8 @@ rows compare with its own reference, and a last table divides its time per sampl
 close view's.
 
 Run: ``.venv/bin/python tests/bench/bench_convergence.py [--size 240 150] [--far-size 90 56]
-[--spp 16 64 256] [--reference-spp 8192]`` (prints markdown tables; docs/benchmarks.md has the figures).
+[--spp 16 64 256] [--reference-spp 8192] [--seeds 1]`` (prints markdown tables; docs/benchmarks.md has the
+figures).
 """
 from __future__ import annotations
 
@@ -62,9 +69,43 @@ def relative_rmse(image, reference, mask) -> float:
     return float(np.sqrt(np.mean(difference ** 2)) / np.mean(reference[mask]))
 
 
-def measure(description, size, spp_list, reference_spp, sampler="independent"):
-    """``(rows, header)``: every spp of ``spp_list`` with the filter off and on against a point-sampled reference
-    of ``reference_spp``, the plate on a ``size`` film (module docstring)."""
+def error_parts(images, reference, reference_variance, mask) -> dict:
+    """The error of ``images`` (renders of one setting, distinct seeds) against a noisy ``reference``, split
+    into its parts, each relative to the reference's plate mean (module docstring):
+
+    * ``error``: √(mean over seeds and plate pixels of (image − reference)²), what one render shows;
+    * ``corrected``: √(error² − the reference's own variance): the error against the reference's expectation
+      (an independent image's mean squared error is its own plus the reference's);
+    * ``spread``: √(mean per-pixel variance between seeds) (``nan`` with one seed);
+    * ``bias``: the signed root of mean (mean image − reference)² − spread²/seeds − the reference's variance,
+      what is left between the images' expectation and the reference's (``nan`` with one seed);
+    * ``bright_share``: the share of the squared error in the brightest 1 % of the reference's plate pixels.
+
+    ``reference_variance``: the reference's mean per-pixel variance (absolute, the halves' mean squared
+    difference / 4).
+    """
+    stack = np.stack([image[mask] for image in images])  # (seeds, pixels, channels)
+    target = reference[mask]
+    scale = float(np.mean(target))
+    squared = float(np.mean((stack - target) ** 2))
+    parts = dict(error=np.sqrt(squared) / scale,
+                 corrected=np.sqrt(max(squared - reference_variance, 0.0)) / scale,
+                 spread=float("nan"), bias=float("nan"))
+    if len(stack) > 1:
+        variance = float(np.mean(np.var(stack, axis=0, ddof=1)))
+        bias_squared = float(np.mean((stack.mean(axis=0) - target) ** 2)) - variance / len(stack) - reference_variance
+        parts.update(spread=np.sqrt(variance) / scale,
+                     bias=np.copysign(np.sqrt(abs(bias_squared)), bias_squared) / scale)
+    per_pixel = np.mean((stack - target) ** 2, axis=(0, 2))
+    brightness = target.mean(axis=1)
+    brightest = brightness >= np.quantile(brightness, 0.99)
+    parts["bright_share"] = float(per_pixel[brightest].sum() / per_pixel.sum())
+    return parts
+
+
+def measure(description, size, spp_list, reference_spp, sampler="independent", seeds=1):
+    """``(rows, header)``: every spp of ``spp_list`` with the filter off and on, ``seeds`` renders each, against a
+    point-sampled reference of ``reference_spp``, the plate on a ``size`` film (module docstring)."""
     from scratch_iridescence.mitsuba_bridge import builder
     from scratch_iridescence.mitsuba_bridge import scene as S
     from scratch_iridescence.mitsuba_bridge.render.passes import render_image
@@ -86,39 +127,47 @@ def measure(description, size, spp_list, reference_spp, sampler="independent"):
     halves = [rgb(render_image(scenes[False], half, seed=10_000 + k)) for k in range(2)]
     reference_seconds = time.perf_counter() - started
     reference = 0.5 * (halves[0] + halves[1])
-    floor = relative_rmse(halves[0], halves[1], mask) / 2.0
+    # the halves' difference has twice a half's variance, four times the whole reference's
+    reference_variance = float(np.mean((halves[0] - halves[1])[mask] ** 2)) / 4.0
+    floor = np.sqrt(reference_variance) / float(np.mean(reference[mask]))
 
     rows = []
     for spp in spp_list:
         for filtered in (False, True):
             began = time.perf_counter()
-            image = rgb(render_image(scenes[filtered], spp, seed=spp))
-            seconds = time.perf_counter() - began
-            rows.append(dict(spp=spp, filtered=filtered, error=relative_rmse(image, reference, mask),
-                             bias=float(image[mask].mean() / reference[mask].mean() - 1.0),
+            # seed spp first: with one seed the images are those of the bench before --seeds existed
+            images = [rgb(render_image(scenes[filtered], spp, seed=spp + 1000 * k)) for k in range(seeds)]
+            seconds = (time.perf_counter() - began) / seeds
+            rows.append(dict(spp=spp, filtered=filtered, **error_parts(images, reference, reference_variance, mask),
+                             mean=float(np.mean([image[mask].mean() for image in images])
+                                        / reference[mask].mean() - 1.0),
                              per_sample=seconds / (width * height * spp)))
     columns = np.nonzero(mask.any(axis=0))[0]
     plate_width = int(columns.max() - columns.min() + 1) if columns.size else 0
     header = (f"film {width} × {height} (the plate {plate_width} px wide, {int(mask.sum())} plate pixels); reference "
-              f"{2 * half} spp point-sampled ({reference_seconds:.0f} s), its own relative RMSE ≈ {floor:.3f}")
+              f"{2 * half} spp point-sampled ({reference_seconds:.0f} s), its own relative RMSE ≈ {floor:.3f}; "
+              f"{seeds} seed{'s' if seeds > 1 else ''} per row")
     return rows, header
 
 
 def print_table(view, rows, header):
     point_rows = [r for r in rows if not r["filtered"]]
-    a = float(np.mean([r["error"] * np.sqrt(r["spp"]) for r in point_rows]))  # error ≈ a/√spp
+    a = float(np.mean([r["corrected"] * np.sqrt(r["spp"]) for r in point_rows]))  # corrected error ≈ a/√spp
     point_per_sample = {r["spp"]: r["per_sample"] for r in point_rows}
     print(f"**{view} view**: {header}; point error ≈ {a:.2f}/√spp")
     print()
-    print("| spp | filter | relative RMSE | mean vs reference | time / sample (µs) | × point's | "
-          "point spp for this error | equal-error speed-up |")
-    print("|---|---|---|---|---|---|---|---|")
+    print("| spp | filter | relative RMSE | corrected | seed to seed | bias | brightest 1 %'s share | "
+          "mean vs reference | time / sample (µs) | × point's | point spp for this error | equal-error speed-up |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         ratio = r["per_sample"] / point_per_sample[r["spp"]]
-        equal = (a / r["error"]) ** 2
+        equal = (a / max(r["corrected"], 1e-9)) ** 2  # a row within the reference's own noise: a huge figure
         speed_up = equal * point_per_sample[r["spp"]] / (r["spp"] * r["per_sample"])
-        print(f"| {r['spp']} | {'on' if r['filtered'] else 'off'} | {r['error']:.3f} | {100 * r['bias']:+.1f} % | "
-              f"{1e6 * r['per_sample']:.2f} | {ratio:.2f} | {equal:.0f} | {speed_up:.1f}× |")
+        spread = "–" if np.isnan(r["spread"]) else f"{r['spread']:.3f}"
+        bias = "–" if np.isnan(r["bias"]) else f"{r['bias']:+.3f}"
+        print(f"| {r['spp']} | {'on' if r['filtered'] else 'off'} | {r['error']:.3f} | {r['corrected']:.3f} | "
+              f"{spread} | {bias} | {r['bright_share']:.2f} | {100 * r['mean']:+.1f} % | {1e6 * r['per_sample']:.2f} | "
+              f"{ratio:.2f} | {equal:.0f} | {speed_up:.1f}× |")
     print()
 
 
@@ -133,6 +182,8 @@ def main() -> None:
     parser.add_argument("--reference-spp", type=int, default=8192)
     parser.add_argument("--sampler", choices=S.SAMPLERS, default=S.RenderSettings().sampler,
                         help="Mitsuba's sampler of every render, the reference's included (default: the renderer's)")
+    parser.add_argument("--seeds", type=int, default=1,
+                        help="renders per row, distinct seeds: 2 or more split the error into spread and bias")
     args = parser.parse_args()
 
     from bench_schedule import scratched_plate
@@ -141,7 +192,8 @@ def main() -> None:
     variant = activate("auto")
     description = scratched_plate(args.size[0])
     views = [("close", tuple(args.size))] + ([("far", tuple(args.far_size))] if args.far_size else [])
-    results = {view: measure(description, size, args.spp, args.reference_spp, args.sampler) for view, size in views}
+    results = {view: measure(description, size, args.spp, args.reference_spp, args.sampler, args.seeds)
+               for view, size in views}
     print(f"variant {variant}")
     print()
     for view, (rows, header) in results.items():
@@ -151,7 +203,7 @@ def main() -> None:
         print("|---|---|---|---|")
         for near, far in zip(results["close"][0], results["far"][0]):
             print(f"| {near['spp']} | {'on' if near['filtered'] else 'off'} | "
-                  f"{far['per_sample'] / near['per_sample']:.2f} | {far['error'] / near['error']:.2f} |")
+                  f"{far['per_sample'] / near['per_sample']:.2f} | {far['corrected'] / near['corrected']:.2f} |")
 
 
 if __name__ == "__main__":
