@@ -225,9 +225,9 @@ def _gallery(figures, records: dict, validation: dict | None) -> str:
              "cores): "
              f"{_machine()}, {_minutes(total_s)} for this whole page ({_minutes(render_total)} of it building and "
              f"rendering the pictures{noise_part}), so resolution and samples are a small fraction of the "
-             f"paper's and the pictures keep some Monte Carlo noise: each picture's samples per pixel are set so that "
-             "`make paper` fits in about an hour on these cores, 12–64 spp for the scenes of 10⁵–10⁶ scratches "
-             f"(the paper's 16 384 on 72 cores is out of reach).{scaled_note} Pictures are display-referred PNGs "
+             f"paper's and the pictures keep some Monte Carlo noise: the samples per pixel are set so that the "
+             "pictures render in about half an hour on these cores, 12–64 spp for the scenes of 10⁵–10⁶ "
+             f"scratches (the paper's 16 384 on 72 cores is out of reach).{scaled_note} Pictures are display-referred PNGs "
              "(Blender's Standard view with each scene's exposure: AgX would wash the diffraction colours out); "
              "the linear EXRs are in `out/paper/`.", "",
              "| figure | scratches | pictures | time here | paper |", "|---|---|---|---|---|"]

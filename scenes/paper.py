@@ -17,7 +17,7 @@ compiled kernels never flatter the next:
 Then a third, ``noise``, opens the saved scene once more and finds the samples per pixel at which
 the picture rendered with the Footprint Filter is as noisy as the point-sampled one (:mod:`.noise`):
 the benchmark table's last column.  ``--no-filtered-noise`` skips it; ``--filtered-noise-only``
-measures it for the pictures already in ``--output``.
+measures it for the pictures in ``--output`` that lack it.
 
 Before the first picture and after the last, another worker renders Mitsuba's own Cornell box
 (``reference``): the machine reference that the benchmark table divides its rows by.
