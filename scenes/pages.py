@@ -204,10 +204,12 @@ def _gallery(figures, records: dict, validation: dict | None) -> str:
     render_total = sum(r["total_s"] for r in rows)
     # The pictures may come from several runs (--only): add up what each took, not this run's wall time.
     # the benchmark table's filtered column (scenes/noise.py) is measured beside the pictures
-    noise_s = sum(r["filtered"].get("total_s", 0.0) for r in rows if r["filtered"])
+    noise_s = _column_seconds(rows)
     total_s = render_total + (validation or {}).get("seconds", 0.0) + noise_s
     noise_part = (f", {_minutes(noise_s)} measuring the Footprint Filter's column of [benchmarks.md](benchmarks.md)"
                   if noise_s else "")
+    large = sorted({r["spp"] for r in rows if r["scratches"] >= 100_000})
+    large_spp = f"{large[0]}–{large[-1]}" if len(large) > 1 else f"{large[0]}" if large else "few"
     scaled = [r for r in rows if abs(r["full_settings_s"] - r["total_s"]) > 1e-9]
     scaled_note = "" if not scaled else (
         f" {len(scaled)} of the pictures were rendered below make paper's settings (their tables say which); "
@@ -226,8 +228,9 @@ def _gallery(figures, records: dict, validation: dict | None) -> str:
              f"{_machine()}, {_minutes(total_s)} for this whole page ({_minutes(render_total)} of it building and "
              f"rendering the pictures{noise_part}), so resolution and samples are a small fraction of the "
              f"paper's and the pictures keep some Monte Carlo noise: the samples per pixel are set so that the "
-             "pictures render in about half an hour on these cores, 12–64 spp for the scenes of 10⁵–10⁶ "
-             f"scratches (the paper's 16 384 on 72 cores is out of reach).{scaled_note} Pictures are display-referred PNGs "
+             f"pictures render in about half an hour on these cores, {large_spp} spp for the scenes of 10⁵ "
+             f"scratches and more (the paper's 16 384 on 72 cores is out of reach).{scaled_note} Pictures are "
+             "display-referred PNGs "
              "(Blender's Standard view with each scene's exposure: AgX would wash the diffraction colours out); "
              "the linear EXRs are in `out/paper/`.", "",
              "| figure | scratches | pictures | time here | paper |", "|---|---|---|---|---|"]
@@ -284,6 +287,11 @@ def _tables_source(row: dict) -> str:
     if read and not built:
         return "read"
     return "built" if not read else "built and read"
+
+
+def _column_seconds(rows: list[dict]) -> float:
+    """Seconds spent measuring the filtered column (scenes/noise.py) of these rows."""
+    return sum(r["filtered"].get("total_s", 0.0) for r in rows if r["filtered"])
 
 
 def _filtered(measured: dict | None) -> str:
@@ -369,16 +377,15 @@ def _benchmarks(figures, records: dict) -> str:
                      "These pictures re-traced the integrator and the BSDF for every chunk instead of replaying "
                      "one recording ([rendering.md](rendering.md), Render): the same image, a slower render.")
     measured = [r["filtered"] for r in rows if r["filtered"]]
-    column_s = sum(m.get("total_s", 0.0) for m in measured)
+    column_s = _column_seconds(rows)
     lines += ["* **Filtered BSDF: spp for the same noise**: the samples per pixel at which the picture rendered "
               "with the Footprint Filter (the closed-form expected scratch BSDF over each sample's share of the "
               "pixel, docs/model.md §11; off by default, docs/rendering.md) is as noisy as the point-sampled "
               "picture of this row, and that render's wall time (the second of a pair: kernels compiled; compare "
               "with *of it passes*). Noise = RMS deviation over the pixels relative to the mean, from two seeds; "
-              "the point picture's "
-              "from a pair at 1/16 of its spp; the filtered spp found by probing from 1 spp and predicting by "
-              "1/sqrt(spp) (the first spp tried that reaches the noise: the least lies below it), up to ⅛ of "
-              "the picture's spp (*not reached at*: beyond it a filtered sample's cost leaves no time saved). "
+              "the point picture's from a pair at 1/16 of its spp; the filtered spp found by probing from 1 spp "
+              "and predicting by 1/sqrt(spp) (the first spp tried that reaches the noise: the least lies below "
+              "it), up to ⅛ of the picture's spp (*not reached at*: beyond it a filtered sample's cost leaves no time saved). "
               "*mean ×* is the filtered pair's mean over the point pair's (bias check). `scenes/noise.py`; part of "
               "`make paper` "
               + (f"(this column: {_minutes(column_s)} of measuring in all)." if measured else
